@@ -1,0 +1,419 @@
+//! Levenberg-Marquardt prediction-error minimisation of an OE criterion (METHOD.md 3, 5).
+//!
+//! At `theta` with residuals `e_t`, row weights `w_t` and influence `r_t = psi_g(e_t)`:
+//!
+//! ```text
+//! H = (1/N) sum_t w_t psi_t psi_t^T        g = (1/N) sum_t psi_t r_t   (= -grad criterion)
+//! (H + lambda D) delta = g,   D = diag(H) (Marquardt scaling, floored)
+//! ```
+//!
+//! Least squares: `w = 1`, `r = e`. Huber: `r = clamp(e, -g, g)` and either the exact
+//! Gauss-Newton weights (1 on the L2 set, 0 on the L1 set; METHOD.md 3) or IRLS weights
+//! `min(1, g/|e|)`. The exact weights make `H` near singular at small k; the damping
+//! `lambda D` is what keeps the step defined, and the gain ratio drives lambda (Nielsen's rule).
+//!
+//! Invariants: a trial step is accepted only when the criterion strictly decreases, and only
+//! with a stable F. An unstable trial F is first reflected into the unit circle (as the scipy
+//! peer does) and accepted if that point lowers the criterion; otherwise the step is
+//! rejected and lambda raised, i.e. the step shortened (METHOD.md 8).
+//!
+//! All buffers live in [`Workspace`]; after the first call of a given size the iteration loop
+//! allocates nothing (pole reflection, a rare event, is the exception).
+
+use super::huber::Loss;
+use super::normal::{Layout, NormalEquations};
+use crate::oe;
+
+/// How the Huber Hessian weights the L1 rows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum HuberHessian {
+    /// Exact Gauss-Newton Hessian of W: L1 rows get weight 0 (METHOD.md 3).
+    GaussNewton,
+    /// Iteratively reweighted least squares: L1 rows get weight g/|e|.
+    Irls,
+}
+
+/// Solver settings. Defaults are tight enough to match a scipy trust-region fit to ~1e-8.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverOptions {
+    /// Iteration cap (accepted + rejected steps count as one iteration each outer pass).
+    pub max_iterations: usize,
+    /// Stop when both actual and predicted relative decrease of the criterion are below this.
+    pub ftol: f64,
+    /// Stop when the step is below `xtol (||theta|| + xtol)`.
+    pub xtol: f64,
+    /// Stop when the scaled gradient `max_i |g_i|/sqrt(H_ii)` is below `gtol sqrt(2 criterion)`.
+    pub gtol: f64,
+    /// Initial damping.
+    pub lambda0: f64,
+    /// Huber Hessian weighting.
+    pub huber_hessian: HuberHessian,
+}
+
+impl Default for SolverOptions {
+    fn default() -> Self {
+        SolverOptions {
+            max_iterations: 300,
+            ftol: 1e-10,
+            xtol: 1e-10,
+            gtol: 1e-9,
+            lambda0: 1e-3,
+            huber_hessian: HuberHessian::GaussNewton,
+        }
+    }
+}
+
+/// Why a minimisation stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Termination {
+    /// Relative decrease of the criterion (actual and predicted) below `ftol`.
+    CriterionTolerance,
+    /// Step below `xtol`.
+    StepTolerance,
+    /// Scaled gradient below `gtol`.
+    GradientTolerance,
+    /// The residuals are zero to rounding (noise-free data at the true model).
+    ExactFit,
+    /// `max_iterations` reached before a tolerance was met.
+    MaxIterations,
+    /// No decreasing step could be found although no tolerance was met (damping exhausted).
+    Stalled,
+    /// The criterion or the normal equations became non-finite at the start point.
+    NonFinite,
+}
+
+impl Termination {
+    pub fn converged(self) -> bool {
+        matches!(
+            self,
+            Termination::CriterionTolerance
+                | Termination::StepTolerance
+                | Termination::GradientTolerance
+                | Termination::ExactFit
+        )
+    }
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Termination::CriterionTolerance => "criterion_tolerance",
+            Termination::StepTolerance => "step_tolerance",
+            Termination::GradientTolerance => "gradient_tolerance",
+            Termination::ExactFit => "exact_fit",
+            Termination::MaxIterations => "max_iterations",
+            Termination::Stalled => "stalled",
+            Termination::NonFinite => "non_finite",
+        }
+    }
+}
+
+impl std::fmt::Display for Termination {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// One SISO estimation problem: data and model structure.
+#[derive(Clone, Copy, Debug)]
+pub struct Problem<'a> {
+    pub u: &'a [f64],
+    pub y: &'a [f64],
+    pub nb: usize,
+    pub nf: usize,
+    pub delay: usize,
+}
+
+impl Problem<'_> {
+    pub fn dim(&self) -> usize {
+        self.nb + self.nf
+    }
+    pub fn layout(&self) -> Layout {
+        Layout { nb: self.nb, nf: self.nf, delay: self.delay }
+    }
+    pub fn n(&self) -> usize {
+        self.u.len()
+    }
+}
+
+/// Result of one minimisation.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    pub theta: Vec<f64>,
+    pub criterion: f64,
+    /// Outer iterations (each builds the normal equations once).
+    pub iterations: usize,
+    pub termination: Termination,
+    /// Accepted steps that needed a pole reflection.
+    pub reflections: usize,
+}
+
+/// Per-worker buffers, reused across fits of any size.
+#[derive(Default, Debug)]
+pub struct Workspace {
+    pub(crate) yhat: Vec<f64>,
+    trial_yhat: Vec<f64>,
+    xu: Vec<f64>,
+    xy: Vec<f64>,
+    r: Vec<f64>,
+    w: Vec<f64>,
+    h: Vec<f64>,
+    g: Vec<f64>,
+    a: Vec<f64>,
+    delta: Vec<f64>,
+    theta: Vec<f64>,
+    trial: Vec<f64>,
+    ne: NormalEquations,
+    /// Criterion after each accepted step (first entry: the start), when `record_trace`.
+    pub trace: Vec<f64>,
+    pub record_trace: bool,
+}
+
+impl Workspace {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    fn prepare(&mut self, n: usize, d: usize) {
+        for v in [&mut self.yhat, &mut self.trial_yhat, &mut self.xu, &mut self.xy, &mut self.r, &mut self.w] {
+            v.resize(n, 0.0);
+        }
+        for v in [&mut self.h, &mut self.a] {
+            v.resize(d * d, 0.0);
+        }
+        for v in [&mut self.g, &mut self.delta, &mut self.theta, &mut self.trial] {
+            v.resize(d, 0.0);
+        }
+        self.trace.clear();
+    }
+
+    /// The simulated output at the last solution returned by [`minimise`].
+    pub fn yhat(&self) -> &[f64] {
+        &self.yhat
+    }
+}
+
+/// In-place Cholesky of the d x d row-major SPD matrix `a` (lower factor); false if not SPD.
+fn cholesky(a: &mut [f64], d: usize) -> bool {
+    for j in 0..d {
+        let mut s = a[j * d + j];
+        for k in 0..j {
+            s -= a[j * d + k] * a[j * d + k];
+        }
+        if s.is_nan() || s <= 0.0 || s.is_infinite() {
+            return false;
+        }
+        let l = s.sqrt();
+        a[j * d + j] = l;
+        for i in j + 1..d {
+            let mut s = a[i * d + j];
+            for k in 0..j {
+                s -= a[i * d + k] * a[j * d + k];
+            }
+            a[i * d + j] = s / l;
+        }
+    }
+    true
+}
+
+fn cholesky_solve(l: &[f64], d: usize, x: &mut [f64]) {
+    for i in 0..d {
+        let mut s = x[i];
+        for k in 0..i {
+            s -= l[i * d + k] * x[k];
+        }
+        x[i] = s / l[i * d + i];
+    }
+    for i in (0..d).rev() {
+        let mut s = x[i];
+        for k in i + 1..d {
+            s -= l[k * d + i] * x[k];
+        }
+        x[i] = s / l[i * d + i];
+    }
+}
+
+fn norm2(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// Minimise `loss` over theta = [b, f] from `theta0`. The returned F is stable.
+pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions, ws: &mut Workspace) -> Solution {
+    let n = prob.n();
+    let d = prob.dim();
+    let nb = prob.nb;
+    assert_eq!(theta0.len(), d);
+    assert_eq!(prob.y.len(), n);
+    ws.prepare(n, d);
+    ws.theta.copy_from_slice(theta0);
+    let mut reflections = 0;
+    if oe::reflect_unstable(&mut ws.theta[nb..]) {
+        reflections += 1;
+    }
+    let lay = prob.layout();
+    let y_scale = prob.y.iter().map(|v| v * v).sum::<f64>() / n as f64;
+    // Residuals at this level are rounding noise of the simulation.
+    let exact_level = 1e-26 * y_scale.max(f64::MIN_POSITIVE);
+
+    oe::simulate(&ws.theta[..nb], &ws.theta[nb..], prob.delay, prob.u, &mut ws.yhat);
+    let mut crit = loss.criterion(prob.y, &ws.yhat);
+    let finish = |ws: &mut Workspace, crit, iterations, termination, reflections| Solution {
+        theta: ws.theta.clone(),
+        criterion: crit,
+        iterations,
+        termination,
+        reflections,
+    };
+    if !crit.is_finite() {
+        return finish(ws, crit, 0, Termination::NonFinite, reflections);
+    }
+    if ws.record_trace {
+        ws.trace.push(crit);
+    }
+    let mut lambda = opts.lambda0;
+    let mut nu = 2.0;
+    let use_weights = !matches!(loss, Loss::LeastSquares);
+
+    for it in 0..opts.max_iterations {
+        if crit <= exact_level {
+            return finish(ws, crit, it, Termination::ExactFit, reflections);
+        }
+        // Residual influence and row weights at the current point.
+        match loss {
+            Loss::LeastSquares => {
+                for ((r, &y), &yh) in ws.r.iter_mut().zip(prob.y).zip(&ws.yhat) {
+                    *r = y - yh;
+                }
+            }
+            Loss::Huber { gamma } => {
+                let irls = opts.huber_hessian == HuberHessian::Irls;
+                for t in 0..n {
+                    let e = prob.y[t] - ws.yhat[t];
+                    let a = e.abs();
+                    if a <= gamma {
+                        ws.r[t] = e;
+                        ws.w[t] = 1.0;
+                    } else {
+                        ws.r[t] = gamma.copysign(e);
+                        ws.w[t] = if irls { gamma / a } else { 0.0 };
+                    }
+                }
+            }
+        }
+        ws.xu.copy_from_slice(prob.u);
+        oe::inv_f_in_place(&ws.theta[nb..], &mut ws.xu);
+        ws.xy.copy_from_slice(&ws.yhat);
+        oe::inv_f_in_place(&ws.theta[nb..], &mut ws.xy);
+        let w = if use_weights { Some(&ws.w[..]) } else { None };
+        ws.ne.build(&lay, &ws.xu, &ws.xy, w, &ws.r, &mut ws.h, &mut ws.g);
+        if ws.h.iter().any(|v| !v.is_finite()) || ws.g.iter().any(|v| !v.is_finite()) {
+            return finish(ws, crit, it, Termination::NonFinite, reflections);
+        }
+        let hmax = (0..d).map(|i| ws.h[i * d + i]).fold(0.0, f64::max);
+        let floor = 1e-12 * hmax.max(f64::MIN_POSITIVE);
+        let scaled_grad = (0..d).map(|i| ws.g[i].abs() / ws.h[i * d + i].max(floor).sqrt()).fold(0.0, f64::max);
+        if scaled_grad <= opts.gtol * (2.0 * crit).sqrt() {
+            return finish(ws, crit, it, Termination::GradientTolerance, reflections);
+        }
+
+        // Inner loop: raise damping until a step decreases the criterion.
+        loop {
+            ws.a.copy_from_slice(&ws.h);
+            for i in 0..d {
+                ws.a[i * d + i] += lambda * ws.h[i * d + i].max(floor);
+            }
+            if !cholesky(&mut ws.a, d) {
+                lambda *= nu;
+                nu *= 2.0;
+                if lambda > 1e20 {
+                    return finish(ws, crit, it + 1, Termination::Stalled, reflections);
+                }
+                continue;
+            }
+            ws.delta.copy_from_slice(&ws.g);
+            cholesky_solve(&ws.a, d, &mut ws.delta);
+            // Predicted decrease of the quadratic model: g.delta - delta^T H delta / 2.
+            let mut quad = 0.0;
+            for i in 0..d {
+                let mut hi = 0.0;
+                for j in 0..d {
+                    hi += ws.h[i * d + j] * ws.delta[j];
+                }
+                quad += ws.delta[i] * hi;
+            }
+            let pred = ws.g.iter().zip(&ws.delta).map(|(a, b)| a * b).sum::<f64>() - 0.5 * quad;
+            for i in 0..d {
+                ws.trial[i] = ws.theta[i] + ws.delta[i];
+            }
+            let mut reflected = false;
+            if !oe::is_stable(&ws.trial[nb..]) {
+                oe::reflect_unstable(&mut ws.trial[nb..]);
+                reflected = true;
+            }
+            oe::simulate(&ws.trial[..nb], &ws.trial[nb..], prob.delay, prob.u, &mut ws.trial_yhat);
+            let new_crit = loss.criterion(prob.y, &ws.trial_yhat);
+            if new_crit.is_finite() && new_crit < crit {
+                let rho = if pred > 0.0 { (crit - new_crit) / pred } else { 0.0 };
+                lambda *= f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3));
+                nu = 2.0;
+                let step = norm2(&ws.delta);
+                let rel_actual = (crit - new_crit) / crit;
+                let rel_pred = pred.abs() / crit;
+                let small_step = step <= opts.xtol * (norm2(&ws.theta) + opts.xtol);
+                if std::env::var("OESWEEP_DEBUG").is_ok() {
+                    eprintln!(
+                        "it {it} crit {new_crit:.12e} lambda {lambda:.3e} rho {rho:.3} rel {rel_actual:.3e} pred {rel_pred:.3e} step {step:.3e} refl {reflected}"
+                    );
+                }
+                std::mem::swap(&mut ws.theta, &mut ws.trial);
+                std::mem::swap(&mut ws.yhat, &mut ws.trial_yhat);
+                crit = new_crit;
+                if reflected {
+                    reflections += 1;
+                }
+                if ws.record_trace {
+                    ws.trace.push(crit);
+                }
+                if !reflected && rel_actual <= opts.ftol && rel_pred <= opts.ftol {
+                    return finish(ws, crit, it + 1, Termination::CriterionTolerance, reflections);
+                }
+                if !reflected && small_step {
+                    return finish(ws, crit, it + 1, Termination::StepTolerance, reflections);
+                }
+                break;
+            }
+            // Rejected. A predicted decrease below rounding of the criterion means the point is
+            // a minimum to machine precision: more damping cannot help.
+            if !reflected && pred.abs() <= 1e-15 * crit {
+                return finish(ws, crit, it + 1, Termination::CriterionTolerance, reflections);
+            }
+            lambda *= nu;
+            nu *= 2.0;
+            if lambda > 1e20 {
+                return finish(ws, crit, it + 1, Termination::Stalled, reflections);
+            }
+        }
+    }
+    finish(ws, crit, opts.max_iterations, Termination::MaxIterations, reflections)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cholesky_solves_spd_system() {
+        let a0 = [4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0];
+        let mut a = a0;
+        assert!(cholesky(&mut a, 3));
+        let mut x = [1.0, 2.0, 3.0];
+        cholesky_solve(&a, 3, &mut x);
+        for i in 0..3 {
+            let r: f64 = (0..3).map(|j| a0[i * 3 + j] * x[j]).sum();
+            assert!((r - [1.0, 2.0, 3.0][i]).abs() < 1e-12);
+        }
+        let mut b = [1.0, 2.0, 2.0, 1.0];
+        assert!(!cholesky(&mut b, 2));
+    }
+}

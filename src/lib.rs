@@ -1,0 +1,14 @@
+//! oesweep: robust (Huber) output-error identification and model-order search.
+//!
+//! The numerical specification is `../shared/METHOD.md`; module docs cite its sections.
+//! Data flows one way: data -> estimate (per cell) -> (sweep -> reduce -> export).
+
+pub mod cli;
+pub mod data;
+pub mod error;
+pub mod estimate;
+pub mod oe;
+pub mod simulate;
+pub mod spectral;
+
+pub use error::{Error, Result};

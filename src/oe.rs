@@ -1,0 +1,328 @@
+//! The output-error model OE(nB, nF) with delay d (METHOD.md section 2).
+//!
+//! ```text
+//! y_t    = q^-d B(q^-1)/F(q^-1) u_t + e_t
+//! B      = b_1 + b_2 q^-1 + ... + b_nB q^-(nB-1)
+//! F      = 1 + f_1 q^-1 + ... + f_nF q^-nF          (monic)
+//! yhat_t = sum_i b_i u_{t-d-i+1} - sum_j f_j yhat_{t-j}   (zero initial conditions)
+//! ```
+//!
+//! Indices here are 0-based (`t = 0..N`); samples before the record are zero.
+//! The predictor gradient needs only two `1/F` passes (METHOD.md 2):
+//! `d yhat_t/d b_i = [(1/F) u]_{t-d-i+1}`, `d yhat_t/d f_j = -[(1/F) yhat]_{t-j}`.
+//!
+//! The `1/F` recursion is the innermost loop of every solver, so it is specialised on the
+//! filter order with const generics: a fixed-size state lives in registers, which the
+//! prototype measured ~6x faster than a loop over a runtime-length slice.
+
+use faer::Mat;
+
+/// Apply `1/F` in place: `x_t <- x_t - sum_j f_j x_{t-j}` (zero initial conditions).
+/// Orders up to 24 run a const-generic recursion; higher orders the generic loop.
+pub fn inv_f_in_place(f: &[f64], x: &mut [f64]) {
+    macro_rules! dispatch {
+        ($($n:literal)*) => {
+            match f.len() {
+                0 => {}
+                $($n => inv_f_fixed::<$n>(f, x),)*
+                _ => inv_f_generic(f, x),
+            }
+        };
+    }
+    dispatch!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24);
+}
+
+#[inline(always)]
+fn inv_f_fixed<const M: usize>(f: &[f64], x: &mut [f64]) {
+    let mut a = [0.0; M];
+    a.copy_from_slice(&f[..M]);
+    // s[j] holds x_{t-1-j}: the last M outputs, newest first.
+    let mut s = [0.0; M];
+    for xt in x.iter_mut() {
+        let mut acc = *xt;
+        for j in 0..M {
+            acc -= a[j] * s[j];
+        }
+        for j in (1..M).rev() {
+            s[j] = s[j - 1];
+        }
+        s[0] = acc;
+        *xt = acc;
+    }
+}
+
+fn inv_f_generic(f: &[f64], x: &mut [f64]) {
+    for t in 0..x.len() {
+        let mut acc = x[t];
+        for (j, fj) in f.iter().enumerate().take(t) {
+            acc -= fj * x[t - 1 - j];
+        }
+        x[t] = acc;
+    }
+}
+
+/// FIR part of the model: `out_t = sum_i b_i u_{t-d-i+1}`.
+pub fn delayed_fir(b: &[f64], delay: usize, u: &[f64], out: &mut [f64]) {
+    assert_eq!(u.len(), out.len());
+    out.fill(0.0);
+    for (i, &bi) in b.iter().enumerate() {
+        let lag = delay + i;
+        if lag >= u.len() {
+            break;
+        }
+        for (o, &ui) in out[lag..].iter_mut().zip(u) {
+            *o += bi * ui;
+        }
+    }
+}
+
+/// Simulated output (= one-step predictor of an OE model), zero initial conditions.
+pub fn simulate(b: &[f64], f: &[f64], delay: usize, u: &[f64], yhat: &mut [f64]) {
+    delayed_fir(b, delay, u, yhat);
+    inv_f_in_place(f, yhat);
+}
+
+/// Convenience wrapper of [`simulate`] that allocates its output.
+pub fn simulate_vec(b: &[f64], f: &[f64], delay: usize, u: &[f64]) -> Vec<f64> {
+    let mut y = vec![0.0; u.len()];
+    simulate(b, f, delay, u, &mut y);
+    y
+}
+
+/// Frequency response `G(e^{jw}) = e^{-jwd} B(e^{-jw}) / F(e^{-jw})` at normalised angular
+/// frequency `w = 2 pi f Ts` (rad/sample). Returns (re, im).
+pub fn freq_response(b: &[f64], f: &[f64], delay: usize, w: f64) -> (f64, f64) {
+    // B(e^{-jw}) e^{-jwd} = sum_i b_i e^{-jw(d+i)}
+    let (mut br, mut bi) = (0.0, 0.0);
+    for (i, &c) in b.iter().enumerate() {
+        let ph = -w * (delay + i) as f64;
+        br += c * ph.cos();
+        bi += c * ph.sin();
+    }
+    let (mut fr, mut fi) = (1.0, 0.0);
+    for (j, &c) in f.iter().enumerate() {
+        let ph = -w * (j + 1) as f64;
+        fr += c * ph.cos();
+        fi += c * ph.sin();
+    }
+    let den = fr * fr + fi * fi;
+    ((br * fr + bi * fi) / den, (bi * fr - br * fi) / den)
+}
+
+/// Schur-Cohn (step-down) test: true when every root of `1 + f_1 z^-1 + ... + f_n z^-n` lies
+/// strictly inside the unit circle. O(n^2), no allocation for n <= 64.
+pub fn is_stable(f: &[f64]) -> bool {
+    let n = f.len();
+    if n == 0 {
+        return true;
+    }
+    if f.iter().any(|v| !v.is_finite()) {
+        return false;
+    }
+    let mut stack = [0.0; 65];
+    let mut heap;
+    let a: &mut [f64] = if n < 65 {
+        &mut stack[..=n]
+    } else {
+        heap = vec![0.0; n + 1];
+        &mut heap
+    };
+    a[0] = 1.0;
+    a[1..].copy_from_slice(f);
+    for m in (1..=n).rev() {
+        let k = a[m];
+        if k.abs() >= 1.0 {
+            return false;
+        }
+        let den = 1.0 - k * k;
+        // a_i <- (a_i - k a_{m-i}) / (1 - k^2), i = 1..m-1, done in pairs to stay in place.
+        let (mut i, mut j) = (1, m - 1);
+        while i < j {
+            let (ai, aj) = (a[i], a[j]);
+            a[i] = (ai - k * aj) / den;
+            a[j] = (aj - k * ai) / den;
+            i += 1;
+            j -= 1;
+        }
+        if i == j {
+            a[i] = (a[i] - k * a[i]) / den;
+        }
+    }
+    true
+}
+
+/// Roots of `z^n + f_1 z^{n-1} + ... + f_n` (the poles of the model) as (re, im) pairs,
+/// from the eigenvalues of the companion matrix. Empty when the eigen solver fails.
+pub fn poles(f: &[f64]) -> Vec<(f64, f64)> {
+    let n = f.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    if f.iter().any(|v| !v.is_finite()) {
+        return Vec::new();
+    }
+    let c = Mat::<f64>::from_fn(n, n, |i, j| {
+        if i == 0 {
+            -f[j]
+        } else if i == j + 1 {
+            1.0
+        } else {
+            0.0
+        }
+    });
+    match c.eigenvalues() {
+        Ok(ev) => ev.iter().map(|z| (z.re, z.im)).collect(),
+        Err(_) => Vec::new(),
+    }
+}
+
+/// Largest pole radius of `F` (0 for nF = 0, infinity when the poles cannot be computed).
+pub fn max_pole_radius(f: &[f64]) -> f64 {
+    if f.is_empty() {
+        return 0.0;
+    }
+    let p = poles(f);
+    if p.is_empty() {
+        return f64::INFINITY;
+    }
+    p.iter().map(|&(re, im)| re.hypot(im)).fold(0.0, f64::max)
+}
+
+/// Monic real polynomial `[f_1..f_n]` from its roots (complex roots in conjugate pairs).
+pub fn poly_from_roots(roots: &[(f64, f64)]) -> Vec<f64> {
+    // c holds the complex coefficients of prod (z - r), highest power first.
+    let mut c: Vec<(f64, f64)> = vec![(1.0, 0.0)];
+    for &(rr, ri) in roots {
+        let mut next = vec![(0.0, 0.0); c.len() + 1];
+        for (k, &(cr, ci)) in c.iter().enumerate() {
+            next[k].0 += cr;
+            next[k].1 += ci;
+            // - r * c_k goes to power one lower
+            next[k + 1].0 -= rr * cr - ri * ci;
+            next[k + 1].1 -= rr * ci + ri * cr;
+        }
+        c = next;
+    }
+    c[1..].iter().map(|z| z.0).collect()
+}
+
+/// Reflect the poles outside (or on) the unit circle to `1/conj(p)`, keeping `F` monic and
+/// real. Roots exactly on the circle are pulled to radius `1 - 1e-6` so the result is
+/// strictly stable. Returns true when something changed.
+pub fn reflect_unstable(f: &mut [f64]) -> bool {
+    if is_stable(f) {
+        return false;
+    }
+    let mut p = poles(f);
+    if p.len() != f.len() {
+        // Eigen solver failed: shrink towards F = 1, which is always stable.
+        let mut scale = 0.5;
+        while !is_stable(f) {
+            for (j, v) in f.iter_mut().enumerate() {
+                *v *= f64::powi(scale, j as i32 + 1);
+            }
+            scale *= 0.5;
+        }
+        return true;
+    }
+    const RMAX: f64 = 1.0 - 1e-6;
+    for z in p.iter_mut() {
+        let r = z.0.hypot(z.1);
+        if r >= 1.0 {
+            let target = if r > 1.0 + 1e-6 { 1.0 / r } else { RMAX };
+            let s = target / r;
+            *z = (z.0 * s, z.1 * s);
+        }
+    }
+    let g = poly_from_roots(&p);
+    f.copy_from_slice(&g);
+    if !is_stable(f) {
+        // Rounding left a root on the circle: contract all poles slightly.
+        let mut s = RMAX;
+        while !is_stable(f) {
+            for (j, v) in f.iter_mut().enumerate() {
+                *v = g[j] * s.powi(j as i32 + 1);
+            }
+            s *= RMAX;
+        }
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inv_f_specialised_matches_generic() {
+        let x0: Vec<f64> = (0..200).map(|t| ((t * 37 % 11) as f64 - 5.0) * 0.3).collect();
+        for n in 1..=30 {
+            let f: Vec<f64> = (0..n).map(|j: i32| 0.5f64.powi(j + 1) * if j % 2 == 0 { -1.0 } else { 0.7 }).collect();
+            let mut a = x0.clone();
+            let mut b = x0.clone();
+            inv_f_in_place(&f, &mut a);
+            inv_f_generic(&f, &mut b);
+            for (p, q) in a.iter().zip(&b) {
+                assert!((p - q).abs() <= 1e-12 * (1.0 + q.abs()), "n={n}");
+            }
+        }
+    }
+
+    #[test]
+    fn simulate_matches_difference_equation() {
+        let b = [0.5, -0.2, 0.1];
+        let f = [-1.2, 0.5];
+        let u: Vec<f64> = (0..50).map(|t| if (t / 3) % 2 == 0 { 1.0 } else { -1.0 }).collect();
+        for d in 0..3 {
+            let y = simulate_vec(&b, &f, d, &u);
+            for t in 0..u.len() {
+                let mut r = 0.0;
+                for i in 0..3 {
+                    if t >= d + i {
+                        r += b[i] * u[t - d - i];
+                    }
+                }
+                for j in 0..2 {
+                    if t > j {
+                        r -= f[j] * y[t - 1 - j];
+                    }
+                }
+                assert!((r - y[t]).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn stability_test_agrees_with_poles() {
+        let cases: &[&[f64]] = &[&[-1.5, 0.7], &[-2.5, 1.0], &[0.5], &[-1.0], &[-1.8, 0.81], &[-1.9, 0.99, -0.2]];
+        for f in cases {
+            let r = max_pole_radius(f);
+            assert_eq!(is_stable(f), r < 1.0 - 1e-12, "{f:?} radius {r}");
+        }
+    }
+
+    #[test]
+    fn reflection_moves_poles_inside() {
+        let mut f = vec![-2.5, 1.0]; // roots 2 and 0.5
+        assert!(reflect_unstable(&mut f));
+        assert!((f[0] + 1.0).abs() < 1e-12 && (f[1] - 0.25).abs() < 1e-12, "{f:?}");
+        let mut g = vec![-2.0, 1.0]; // double root at 1
+        reflect_unstable(&mut g);
+        assert!(is_stable(&g));
+    }
+
+    #[test]
+    fn poly_roundtrip() {
+        let f = [-1.6, 1.2, -0.4, 0.05];
+        let g = poly_from_roots(&poles(&f));
+        for (a, b) in f.iter().zip(&g) {
+            assert!((a - b).abs() < 1e-10);
+        }
+    }
+
+    #[test]
+    fn freq_response_at_dc() {
+        let (re, im) = freq_response(&[0.2, 0.1], &[-0.5], 1, 0.0);
+        assert!((re - 0.6).abs() < 1e-12 && im.abs() < 1e-12);
+    }
+}

@@ -1,0 +1,694 @@
+//! Example data: a PRBS input through a known OE system, plus noise and outliers.
+//!
+//! The paper's record (METHOD.md section 1) cannot be shipped, so tests, benchmarks and demos
+//! run on data made here: a maximum-length PRBS input (as in the paper: 10-bit shift register,
+//! +/-10 V), the noise-free output `y0 = q^-d B/F u` of a system read from a JSON file, and a
+//! measured output `y = y0 + e + spikes` with Gaussian or Student-t noise `e` and optional
+//! large spikes (the paper's observation outliers).
+//!
+//! Everything is deterministic: the same system and options give bit-identical records on every
+//! machine, because the random numbers come from our own xoshiro256** generator rather than
+//! from a crate whose stream may change between versions. The seed picks both the PRBS phase
+//! and the noise, so estimation and validation records made with two seeds differ.
+//!
+//! `jobs/data/piezo_system.json` is a piezo-like OE(10, 10) system of our own design
+//! (Ts = 100 us), built directly in the z-domain so that every pole and zero is significant
+//! (no near-zero coefficient, no near pole-zero cancellation, which would blur the "true" order):
+//! - resonances at 700 Hz (damping 0.025, pole radius 0.9891), 2100 Hz (0.03, radius 0.9612)
+//!   and 3300 Hz (0.05, radius 0.9015);
+//! - real poles 0.85, 0.5, 0.3, 0.1;
+//! - zeros: anti-resonances at 1300 Hz (radius 0.85) and 2700 Hz (radius 0.9), real zeros
+//!   -1.8 (outside the unit circle, like the sampling zeros of a fast-sampled continuous
+//!   system), -0.8, -0.6, 0.65, 0.7;
+//! - delay 1, gain scaled to exactly 1 at DC. The magnitude peaks are about 9.7 (700 Hz),
+//!   0.67 (2.1 kHz) and 0.08 (3.3 kHz); a +/-10 V PRBS gives an output of standard deviation
+//!   about 10 (micro-metres, say) with peaks near 45.
+
+use std::fs;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::oe;
+
+/// An OE system `y = q^-delay B(q^-1)/F(q^-1) u` as stored in a system JSON file:
+/// `{"b": [b_1, ..., b_nB], "f": [f_1, ..., f_nF], "delay": 1}` (`f` without the leading 1 of
+/// the monic F; `delay` defaults to 1).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SystemSpec {
+    pub b: Vec<f64>,
+    pub f: Vec<f64>,
+    #[serde(default = "one")]
+    pub delay: usize,
+}
+
+fn one() -> usize {
+    1
+}
+
+/// Reads and checks a system JSON file: valid JSON of the right shape (serde's message gives
+/// line and column), at least one B coefficient, and a stable F (a simulation through an
+/// unstable F diverges, so such a file is always a mistake).
+pub fn read_system(path: &Path) -> Result<SystemSpec> {
+    let text = fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot open file: {e}")))?;
+    let sys: SystemSpec =
+        serde_json::from_str(&text).map_err(|e| Error::input(path, format!("invalid system file: {e}")))?;
+    check_system(&sys).map_err(|msg| Error::input(path, msg))?;
+    Ok(sys)
+}
+
+/// The checks of [`read_system`], as a message without the file name.
+fn check_system(sys: &SystemSpec) -> std::result::Result<(), String> {
+    if sys.b.is_empty() {
+        return Err("b is empty: B needs at least one coefficient".into());
+    }
+    if let Some(i) = sys.b.iter().position(|v| !v.is_finite()) {
+        return Err(format!("b[{}] is not a finite number", i + 1));
+    }
+    if let Some(i) = sys.f.iter().position(|v| !v.is_finite()) {
+        return Err(format!("f[{}] is not a finite number", i + 1));
+    }
+    if !oe::is_stable(&sys.f) {
+        return Err(format!(
+            "F is unstable (largest pole radius {:.6}): the simulated output would diverge",
+            oe::max_pole_radius(&sys.f)
+        ));
+    }
+    Ok(())
+}
+
+/// Feedback taps of maximum-length Fibonacci LFSRs: the exponents `e` of the primitive
+/// polynomial `x^n + ... + 1` other than 0, for `n = 2..=32` (standard tables, e.g. Xilinx
+/// XAPP052; every entry is checked to give period `2^n - 1` by the tests).
+const TAPS: [&[u32]; 31] = [
+    &[2, 1],
+    &[3, 2],
+    &[4, 3],
+    &[5, 3],
+    &[6, 5],
+    &[7, 6],
+    &[8, 6, 5, 4],
+    &[9, 5],
+    &[10, 7],
+    &[11, 9],
+    &[12, 6, 4, 1],
+    &[13, 4, 3, 1],
+    &[14, 5, 3, 1],
+    &[15, 14],
+    &[16, 15, 13, 4],
+    &[17, 14],
+    &[18, 11],
+    &[19, 6, 2, 1],
+    &[20, 17],
+    &[21, 19],
+    &[22, 21],
+    &[23, 18],
+    &[24, 23, 22, 17],
+    &[25, 22],
+    &[26, 6, 2, 1],
+    &[27, 5, 2, 1],
+    &[28, 25],
+    &[29, 27],
+    &[30, 6, 4, 1],
+    &[31, 28],
+    &[32, 22, 2, 1],
+];
+
+/// Supported shift-register lengths of [`prbs`].
+pub const PRBS_BITS: std::ops::RangeInclusive<u32> = 2..=32;
+
+/// Fibonacci LFSR: the output is the lowest bit, the feedback (parity of the tapped bits)
+/// enters at the top.
+struct Lfsr {
+    state: u64,
+    mask: u64,
+    top: u32,
+}
+
+impl Lfsr {
+    fn new(bits: u32, seed: u64) -> Result<Self> {
+        if !PRBS_BITS.contains(&bits) {
+            return Err(Error::Invalid(format!(
+                "PRBS register length {bits} bits is not supported (use {} to {})",
+                PRBS_BITS.start(),
+                PRBS_BITS.end()
+            )));
+        }
+        // Tap exponent e reads the bit that left the top e steps ago: bit (bits - e).
+        let mask = TAPS[(bits - 2) as usize].iter().fold(0u64, |m, &e| m | 1 << (bits - e));
+        let period = (1u64 << bits) - 1;
+        // Any nonzero state is a phase of the same m-sequence; seeds below the period give
+        // distinct phases, so nearby seeds never repeat each other's input.
+        let state = 1 + seed % period;
+        Ok(Lfsr { state, mask, top: bits - 1 })
+    }
+
+    fn next_bit(&mut self) -> bool {
+        let out = self.state & 1 == 1;
+        let fb = u64::from((self.state & self.mask).count_ones() & 1);
+        self.state = (self.state >> 1) | (fb << self.top);
+        out
+    }
+}
+
+/// Maximum-length pseudo-random binary sequence of `n` samples, levels `+amplitude` (register
+/// output 1) and `-amplitude` (0), period `2^bits - 1` (one period holds one more `+` than `-`).
+/// `seed` picks the initial register state `1 + seed mod (2^bits - 1)`, i.e. the phase.
+/// Fails (`Error::Invalid`) for `bits` outside 2..=32.
+pub fn prbs(bits: u32, amplitude: f64, seed: u64, n: usize) -> Result<Vec<f64>> {
+    let mut reg = Lfsr::new(bits, seed)?;
+    Ok((0..n).map(|_| if reg.next_bit() { amplitude } else { -amplitude }).collect())
+}
+
+/// splitmix64 step: used to expand a 64-bit seed into xoshiro state (its recommended seeding).
+fn splitmix64(x: &mut u64) -> u64 {
+    *x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *x;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// xoshiro256** (Blackman and Vigna): small, fast, and fully specified, so streams are stable.
+struct Xoshiro256 {
+    s: [u64; 4],
+}
+
+impl Xoshiro256 {
+    /// Generator for stream `stream` of `seed`: different streams of one seed are unrelated.
+    fn new(seed: u64, stream: u64) -> Self {
+        let mut x = seed ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03);
+        let s = [splitmix64(&mut x), splitmix64(&mut x), splitmix64(&mut x), splitmix64(&mut x)];
+        Xoshiro256 { s }
+    }
+
+    fn next_u64(&mut self) -> u64 {
+        let s = &mut self.s;
+        let result = s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
+        let t = s[1] << 17;
+        s[2] ^= s[0];
+        s[3] ^= s[1];
+        s[1] ^= s[2];
+        s[0] ^= s[3];
+        s[2] ^= t;
+        s[3] = s[3].rotate_left(45);
+        result
+    }
+
+    /// Uniform in [0, 1) with 53 random bits.
+    fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
+    /// Uniform in (-1, 1).
+    fn symmetric(&mut self) -> f64 {
+        2.0 * self.uniform() - 1.0
+    }
+
+    /// A point uniform in the unit disc without its centre, and its squared radius
+    /// (shared by the polar normal and Bailey's polar Student-t methods).
+    fn disc(&mut self) -> (f64, f64, f64) {
+        loop {
+            let (u, v) = (self.symmetric(), self.symmetric());
+            let w = u * u + v * v;
+            if w > 0.0 && w < 1.0 {
+                return (u, v, w);
+            }
+        }
+    }
+}
+
+/// Noise of the simulated measurement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NoiseKind {
+    /// Gaussian, standard deviation `noise_std`.
+    Gaussian,
+    /// Student-t with `dof` degrees of freedom and scale `noise_std` (the noise is `noise_std`
+    /// times a standard t variable, so its standard deviation is
+    /// `noise_std * sqrt(dof / (dof - 2))` for dof > 2 and infinite otherwise): heavy-tailed
+    /// innovations, the case the Huber criterion is built for.
+    StudentT { dof: f64 },
+}
+
+/// Observation outliers: each sample independently, with `probability`, gets a spike of
+/// magnitude uniform in `[min, max]` and random sign added to its output.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Outliers {
+    pub probability: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+/// Settings of [`generate`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimOptions {
+    /// Number of samples N.
+    pub n: usize,
+    /// PRBS shift-register length (the paper: 10).
+    pub bits: u32,
+    /// PRBS level (the paper: 10 V).
+    pub amplitude: f64,
+    /// Picks the PRBS phase, the noise and the outliers.
+    pub seed: u64,
+    /// Noise standard deviation (Gaussian) or scale (Student-t); 0 for no noise.
+    pub noise_std: f64,
+    pub noise: NoiseKind,
+    pub outliers: Option<Outliers>,
+}
+
+/// A simulated record: input, measured output, and the noise-free output `y0`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimRecord {
+    pub u: Vec<f64>,
+    pub y: Vec<f64>,
+    pub y0: Vec<f64>,
+}
+
+// Independent random streams of one seed. Keeping outliers on their own stream means that
+// switching outliers on or off leaves the noise realisation unchanged, so records with and
+// without spikes differ exactly by the spikes.
+const NOISE_STREAM: u64 = 1;
+const OUTLIER_STREAM: u64 = 2;
+
+fn check_options(opts: &SimOptions) -> Result<()> {
+    let bad = |msg: String| Err(Error::Invalid(msg));
+    if opts.n == 0 {
+        return bad("the number of samples must be at least 1".into());
+    }
+    if !(opts.amplitude.is_finite() && opts.amplitude > 0.0) {
+        return bad(format!("PRBS amplitude must be a positive number, got {}", opts.amplitude));
+    }
+    if !(opts.noise_std.is_finite() && opts.noise_std >= 0.0) {
+        return bad(format!("noise standard deviation must be >= 0, got {}", opts.noise_std));
+    }
+    if let NoiseKind::StudentT { dof } = opts.noise
+        && !(dof.is_finite() && dof > 0.0)
+    {
+        return bad(format!("Student-t degrees of freedom must be positive, got {dof}"));
+    }
+    if let Some(o) = &opts.outliers {
+        if !(0.0..=1.0).contains(&o.probability) {
+            return bad(format!("outlier probability must be in [0, 1], got {}", o.probability));
+        }
+        if !(o.min.is_finite() && o.max.is_finite() && 0.0 <= o.min && o.min <= o.max) {
+            return bad(format!(
+                "outlier magnitudes must satisfy 0 <= min <= max, got min {} and max {}",
+                o.min, o.max
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Simulates `sys` driven by a PRBS: `u = prbs(bits, amplitude, seed, n)`,
+/// `y0 = q^-d B/F u` (zero initial conditions), `y = y0 + noise + spikes`.
+/// Fails (`Error::Invalid`) on out-of-range options, an empty B or an unstable F.
+pub fn generate(sys: &SystemSpec, opts: &SimOptions) -> Result<SimRecord> {
+    check_system(sys).map_err(|m| Error::Invalid(format!("system: {m}")))?;
+    check_options(opts)?;
+    let u = prbs(opts.bits, opts.amplitude, opts.seed, opts.n)?;
+    let y0 = oe::simulate_vec(&sys.b, &sys.f, sys.delay, &u);
+    let mut y = y0.clone();
+
+    if opts.noise_std > 0.0 {
+        let mut rng = Xoshiro256::new(opts.seed, NOISE_STREAM);
+        match opts.noise {
+            NoiseKind::Gaussian => {
+                // Marsaglia's polar method yields two normals per accepted point.
+                let mut spare: Option<f64> = None;
+                for v in y.iter_mut() {
+                    let z = match spare.take() {
+                        Some(z) => z,
+                        None => {
+                            let (a, b, w) = rng.disc();
+                            let m = (-2.0 * w.ln() / w).sqrt();
+                            spare = Some(b * m);
+                            a * m
+                        }
+                    };
+                    *v += opts.noise_std * z;
+                }
+            }
+            NoiseKind::StudentT { dof } => {
+                // Bailey (1994), polar method: T = U sqrt(dof (W^(-2/dof) - 1) / W).
+                for v in y.iter_mut() {
+                    let (a, _, w) = rng.disc();
+                    let t = a * (dof * (w.powf(-2.0 / dof) - 1.0) / w).sqrt();
+                    *v += opts.noise_std * t;
+                }
+            }
+        }
+    }
+
+    if let Some(o) = &opts.outliers {
+        let mut rng = Xoshiro256::new(opts.seed, OUTLIER_STREAM);
+        for v in y.iter_mut() {
+            // Draw all three numbers for every sample so that the spike positions do not
+            // depend on the magnitudes (changing min/max moves no spike).
+            let (hit, mag, sign) = (rng.uniform(), rng.uniform(), rng.uniform());
+            if hit < o.probability {
+                let m = o.min + (o.max - o.min) * mag;
+                *v += if sign < 0.5 { -m } else { m };
+            }
+        }
+    }
+    Ok(SimRecord { u, y, y0 })
+}
+
+/// Shortest text that parses back to exactly `x`. `{}` alone is shortest-roundtrip too but
+/// never uses an exponent (1e-300 would take 300 digits), so tiny and huge values use `{:e}`.
+fn fmt_f64(out: &mut impl Write, x: f64) -> std::io::Result<()> {
+    let a = x.abs();
+    if x == 0.0 || (1e-5..1e16).contains(&a) { write!(out, "{x}") } else { write!(out, "{x:e}") }
+}
+
+/// Writes a simulated record as CSV with header `u,y,y0`, in full precision (reading it back
+/// with [`crate::data::read_columns`] gives bit-identical values). The file is written next to
+/// its destination under a temporary name and renamed into place, so a reader never sees half a
+/// file; a missing parent folder is created.
+pub fn write_csv(path: &Path, rec: &SimRecord) -> Result<()> {
+    let fail = |what: &str, e: std::io::Error| Error::output(path, format!("{what}: {e}"));
+    let n = rec.u.len();
+    if rec.y.len() != n || rec.y0.len() != n {
+        return Err(Error::output(
+            path,
+            format!("columns of different lengths (u {n}, y {}, y0 {})", rec.y.len(), rec.y0.len()),
+        ));
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    fs::create_dir_all(dir).map_err(|e| fail("cannot create the folder", e))?;
+    let name = path.file_name().ok_or_else(|| Error::output(path, "not a file name"))?;
+    let tmp = dir.join(format!(".{}.{}.tmp", name.to_string_lossy(), std::process::id()));
+
+    let write = || -> std::io::Result<()> {
+        let mut w = BufWriter::new(fs::File::create(&tmp)?);
+        w.write_all(b"u,y,y0\n")?;
+        for i in 0..n {
+            fmt_f64(&mut w, rec.u[i])?;
+            w.write_all(b",")?;
+            fmt_f64(&mut w, rec.y[i])?;
+            w.write_all(b",")?;
+            fmt_f64(&mut w, rec.y0[i])?;
+            w.write_all(b"\n")?;
+        }
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()
+    };
+    if let Err(e) = write() {
+        let _ = fs::remove_file(&tmp);
+        return Err(fail("cannot write", e));
+    }
+    fs::rename(&tmp, path).map_err(|e| {
+        let _ = fs::remove_file(&tmp);
+        fail("cannot move the finished file into place", e)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn piezo_path() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_system.json")
+    }
+
+    fn opts(seed: u64) -> SimOptions {
+        SimOptions {
+            n: 5000,
+            bits: 10,
+            amplitude: 10.0,
+            seed,
+            noise_std: 0.1,
+            noise: NoiseKind::Gaussian,
+            outliers: Some(Outliers { probability: 0.05, min: 5.0, max: 20.0 }),
+        }
+    }
+
+    /// Smallest p > 0 with x[i + p] == x[i] for all i (x must hold at least two periods).
+    fn min_period(x: &[f64], candidates: &[usize]) -> Option<usize> {
+        candidates
+            .iter()
+            .copied()
+            .filter(|&p| p > 0 && p < x.len())
+            .find(|&p| (0..x.len() - p).all(|i| x[i] == x[i + p]))
+    }
+
+    fn divisors(n: usize) -> Vec<usize> {
+        (1..=n).filter(|&d| n.is_multiple_of(d)).collect()
+    }
+
+    #[test]
+    fn prbs_has_maximal_period_and_balanced_levels() {
+        for bits in 3..=16u32 {
+            let period = (1usize << bits) - 1;
+            for seed in [0u64, 12345] {
+                let x = prbs(bits, 2.5, seed, 2 * period + 5).unwrap();
+                // Every period divides the minimal one, so testing the divisors suffices.
+                assert_eq!(min_period(&x, &divisors(period)), Some(period), "bits {bits}");
+                assert!(x.iter().all(|&v| v == 2.5 || v == -2.5));
+                let plus = x[..period].iter().filter(|&&v| v > 0.0).count();
+                assert_eq!(plus, period - plus + 1, "bits {bits}");
+            }
+        }
+    }
+
+    #[test]
+    fn lfsr_state_returns_after_exactly_one_period() {
+        for bits in 2..=20u32 {
+            let mut r = Lfsr::new(bits, 0).unwrap();
+            let start = r.state;
+            let period = (1u64 << bits) - 1;
+            for step in 1..=period {
+                r.next_bit();
+                if r.state == start {
+                    assert_eq!(step, period, "bits {bits}");
+                }
+            }
+            assert_eq!(r.state, start, "bits {bits}");
+        }
+    }
+
+    /// All 31 tap sets, up to 32 bits (about 8.6e9 steps; run with `--ignored`).
+    #[test]
+    #[ignore]
+    fn lfsr_all_tables_are_maximal() {
+        for bits in 2..=32u32 {
+            let mut r = Lfsr::new(bits, 0).unwrap();
+            let start = r.state;
+            let period = (1u64 << bits) - 1;
+            let mut step = 0u64;
+            loop {
+                r.next_bit();
+                step += 1;
+                if r.state == start {
+                    break;
+                }
+            }
+            assert_eq!(step, period, "bits {bits}");
+        }
+    }
+
+    #[test]
+    fn prbs_rejects_unsupported_lengths() {
+        for bits in [0, 1, 33, 64] {
+            let e = prbs(bits, 1.0, 0, 10).unwrap_err();
+            assert!(matches!(e, Error::Invalid(_)));
+            assert!(e.to_string().contains("not supported"), "{e}");
+        }
+        assert_eq!(prbs(10, 1.0, 0, 0).unwrap().len(), 0);
+    }
+
+    #[test]
+    fn prbs_seed_picks_the_phase() {
+        let a = prbs(10, 1.0, 1, 1023).unwrap();
+        let b = prbs(10, 1.0, 2, 1023).unwrap();
+        assert_ne!(a, b);
+        // Same m-sequence, other phase: b is a rotation of a.
+        let shift = (0..1023).find(|&s| (0..1023).all(|i| a[(i + s) % 1023] == b[i]));
+        assert!(shift.is_some());
+        // Seeds are taken modulo the period.
+        assert_eq!(prbs(10, 1.0, 1 + 1023, 50).unwrap(), a[..50]);
+    }
+
+    #[test]
+    fn generation_is_deterministic_and_seed_dependent() {
+        let sys = read_system(&piezo_path()).unwrap();
+        let a = generate(&sys, &opts(7)).unwrap();
+        let b = generate(&sys, &opts(7)).unwrap();
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&a.y), bits(&b.y));
+        assert_eq!(bits(&a.u), bits(&b.u));
+        assert_eq!(bits(&a.y0), bits(&b.y0));
+        let c = generate(&sys, &opts(8)).unwrap();
+        assert_ne!(a.u, c.u);
+        assert_ne!(a.y, c.y);
+        // Same PRBS phase (seed + period) still gets different noise.
+        let d = generate(&sys, &opts(7 + 1023)).unwrap();
+        assert_eq!(a.u, d.u);
+        assert_ne!(a.y, d.y);
+        // The noise-free output is the OE simulation.
+        assert_eq!(a.y0, oe::simulate_vec(&sys.b, &sys.f, sys.delay, &a.u));
+    }
+
+    #[test]
+    fn outlier_fraction_and_magnitudes() {
+        let sys = read_system(&piezo_path()).unwrap();
+        let mut o = opts(3);
+        o.n = 20000;
+        o.noise_std = 0.0;
+        let r = generate(&sys, &o).unwrap();
+        let spikes: Vec<f64> = r.y.iter().zip(&r.y0).map(|(y, y0)| y - y0).filter(|d| *d != 0.0).collect();
+        let frac = spikes.len() as f64 / o.n as f64;
+        // 5 standard errors of a binomial proportion at p = 0.05, N = 20000 is 0.0077.
+        assert!((frac - 0.05).abs() < 0.0077, "outlier fraction {frac}");
+        assert!(spikes.iter().all(|d| (5.0 - 1e-9..=20.0 + 1e-9).contains(&d.abs())));
+        let pos = spikes.iter().filter(|d| **d > 0.0).count() as f64 / spikes.len() as f64;
+        assert!((pos - 0.5).abs() < 0.1, "positive spikes {pos}");
+    }
+
+    #[test]
+    fn outliers_do_not_change_the_noise() {
+        let sys = read_system(&piezo_path()).unwrap();
+        let with = generate(&sys, &opts(11)).unwrap();
+        let without = generate(&sys, &SimOptions { outliers: None, ..opts(11) }).unwrap();
+        let differ = with.y.iter().zip(&without.y).filter(|(a, b)| (*a - *b).abs() > 1.0).count();
+        let same = with.y.iter().zip(&without.y).filter(|(a, b)| a == b).count();
+        assert_eq!(differ + same, with.y.len());
+        assert!(differ > 150 && differ < 350, "{differ} spikes");
+    }
+
+    fn noise(kind: NoiseKind, std: f64) -> Vec<f64> {
+        let sys = SystemSpec { b: vec![1.0, 0.5], f: vec![-0.5], delay: 1 };
+        let o =
+            SimOptions { n: 20000, bits: 10, amplitude: 1.0, seed: 42, noise_std: std, noise: kind, outliers: None };
+        let r = generate(&sys, &o).unwrap();
+        r.y.iter().zip(&r.y0).map(|(y, y0)| y - y0).collect()
+    }
+
+    #[test]
+    fn gaussian_noise_has_the_requested_std() {
+        let e = noise(NoiseKind::Gaussian, 0.3);
+        let n = e.len() as f64;
+        let mean = e.iter().sum::<f64>() / n;
+        let std = (e.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        // Standard error of the std is 0.3 / sqrt(2N) = 0.0015; mean's is 0.0021.
+        assert!((std - 0.3).abs() < 0.01, "std {std}");
+        assert!(mean.abs() < 0.01, "mean {mean}");
+        // Tails: about 4.55% beyond 2 sigma.
+        let tail = e.iter().filter(|x| x.abs() > 0.6).count() as f64 / n;
+        assert!((tail - 0.0455).abs() < 0.008, "tail {tail}");
+    }
+
+    #[test]
+    fn student_t_noise_has_the_requested_scale() {
+        let e = noise(NoiseKind::StudentT { dof: 3.0 }, 0.5);
+        let mut a: Vec<f64> = e.iter().map(|x| x.abs()).collect();
+        a.sort_by(f64::total_cmp);
+        // Median of |T| for 3 degrees of freedom is t_{0.75}(3) = 0.7649.
+        let med = a[a.len() / 2] / 0.5;
+        assert!((med - 0.7649).abs() < 0.03, "median |t| {med}");
+        // Heavy tails: P(|T| > 5) = 0.0154 for 3 dof (Gaussian: 6e-7).
+        let tail = a.iter().filter(|x| **x > 2.5).count() as f64 / a.len() as f64;
+        assert!((tail - 0.0154).abs() < 0.005, "tail {tail}");
+    }
+
+    #[test]
+    fn options_are_checked() {
+        let sys = read_system(&piezo_path()).unwrap();
+        let cases: Vec<(SimOptions, &str)> = vec![
+            (SimOptions { n: 0, ..opts(1) }, "at least 1"),
+            (SimOptions { bits: 40, ..opts(1) }, "not supported"),
+            (SimOptions { amplitude: 0.0, ..opts(1) }, "amplitude"),
+            (SimOptions { noise_std: -1.0, ..opts(1) }, "noise standard deviation"),
+            (SimOptions { noise: NoiseKind::StudentT { dof: 0.0 }, ..opts(1) }, "degrees of freedom"),
+            (
+                SimOptions { outliers: Some(Outliers { probability: 1.5, min: 1.0, max: 2.0 }), ..opts(1) },
+                "probability",
+            ),
+            (SimOptions { outliers: Some(Outliers { probability: 0.1, min: 3.0, max: 2.0 }), ..opts(1) }, "min <= max"),
+        ];
+        for (o, want) in cases {
+            let e = generate(&sys, &o).unwrap_err();
+            assert!(matches!(e, Error::Invalid(_)));
+            assert!(e.to_string().contains(want), "{e} should mention {want}");
+        }
+        let unstable = SystemSpec { b: vec![1.0], f: vec![-1.5], delay: 1 };
+        let e = generate(&unstable, &opts(1)).unwrap_err();
+        assert!(e.to_string().contains("F is unstable"), "{e}");
+    }
+
+    #[test]
+    fn csv_roundtrip_is_bit_exact() {
+        let sys = read_system(&piezo_path()).unwrap();
+        let mut r = generate(&sys, &opts(5)).unwrap();
+        // Values where plain `{}` would be long or lossy-looking.
+        r.y[0] = 1e-300;
+        r.y[1] = -0.0;
+        r.y[2] = 1.7976931348623157e308;
+        r.y[3] = 5e-324;
+        r.y[4] = 0.1 + 0.2;
+        r.y[5] = -123_456_789.123_456_78;
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("sub/sim.csv");
+        write_csv(&p, &r).unwrap();
+        let cols = crate::data::read_columns(&p, &["u", "y", "y0"]).unwrap();
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&cols[0]), bits(&r.u));
+        assert_eq!(bits(&cols[1]), bits(&r.y));
+        assert_eq!(bits(&cols[2]), bits(&r.y0));
+        // No temporary file is left behind.
+        let left: Vec<_> = fs::read_dir(p.parent().unwrap()).unwrap().collect();
+        assert_eq!(left.len(), 1);
+    }
+
+    #[test]
+    fn piezo_system_file_is_a_stable_oe_10_10() {
+        let sys = read_system(&piezo_path()).unwrap();
+        assert_eq!(sys.b.len(), 10);
+        assert_eq!(sys.f.len(), 10);
+        assert_eq!(sys.delay, 1);
+        assert!(oe::is_stable(&sys.f));
+        let r = oe::max_pole_radius(&sys.f);
+        assert!((0.98..0.99).contains(&r), "largest pole radius {r}");
+        let (re, im) = oe::freq_response(&sys.b, &sys.f, sys.delay, 0.0);
+        assert!((re - 1.0).abs() < 1e-9 && im.abs() < 1e-12, "DC gain {re}");
+        // The 700 Hz resonance (w = 2 pi 700 Ts) dominates.
+        let w = 2.0 * std::f64::consts::PI * 700.0 * 1e-4;
+        let (re, im) = oe::freq_response(&sys.b, &sys.f, sys.delay, w);
+        let peak = re.hypot(im);
+        assert!(peak > 8.0 && peak < 12.0, "gain at 700 Hz {peak}");
+    }
+
+    #[test]
+    fn system_file_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let case = |name: &str, text: &str| {
+            let p = dir.path().join(name);
+            fs::write(&p, text).unwrap();
+            let e = read_system(&p).unwrap_err().to_string();
+            assert!(e.contains(name), "{e}");
+            e
+        };
+        let e = case("syntax.json", "{\n  \"b\": [1.0,\n  \"f\": []\n}");
+        assert!(e.contains("invalid system file") && e.contains("line 3"), "{e}");
+        let e = case("unknown.json", r#"{"b": [1], "f": [], "gain": 2}"#);
+        assert!(e.contains("unknown field `gain`"), "{e}");
+        let e = case("empty_b.json", r#"{"b": [], "f": [0.5]}"#);
+        assert!(e.contains("b is empty"), "{e}");
+        let e = case("unstable.json", r#"{"b": [1], "f": [-2.5, 1.5]}"#);
+        assert!(e.contains("F is unstable (largest pole radius 1.5"), "{e}");
+        let e = case("missing_f.json", r#"{"b": [1]}"#);
+        assert!(e.contains("missing field `f`"), "{e}");
+        let p = dir.path().join("default_delay.json");
+        fs::write(&p, r#"{"b": [1, 0.5], "f": [-0.9]}"#).unwrap();
+        assert_eq!(read_system(&p).unwrap().delay, 1);
+        let e = read_system(&dir.path().join("nope.json")).unwrap_err().to_string();
+        assert!(e.contains("nope.json: cannot open file"), "{e}");
+    }
+}

@@ -1,0 +1,56 @@
+//! Shared helpers of the integration tests: deterministic signals and test systems.
+#![allow(dead_code)]
+
+use oesweep::oe;
+
+/// Deterministic uniform numbers in [0, 1) (64-bit LCG; only for test signals).
+pub struct Lcg(pub u64);
+impl Lcg {
+    pub fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn normal(&mut self) -> f64 {
+        let (a, b) = (self.next().max(1e-300), self.next());
+        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
+    }
+}
+
+/// Random binary (+/-amp) input that holds each level for `hold` samples.
+pub fn binary_input(n: usize, hold: usize, amp: f64, seed: u64) -> Vec<f64> {
+    let mut r = Lcg(seed);
+    let mut v = 0.0;
+    (0..n)
+        .map(|t| {
+            if t % hold == 0 {
+                v = if r.next() < 0.5 { -amp } else { amp };
+            }
+            v
+        })
+        .collect()
+}
+
+/// F with the given poles, as (radius, angle) pairs (each a conjugate pair) plus real poles.
+pub fn f_from_poles(pairs: &[(f64, f64)], real: &[f64]) -> Vec<f64> {
+    let mut roots = Vec::new();
+    for &(r, a) in pairs {
+        roots.push((r * a.cos(), r * a.sin()));
+        roots.push((r * a.cos(), -r * a.sin()));
+    }
+    for &p in real {
+        roots.push((p, 0.0));
+    }
+    oe::poly_from_roots(&roots)
+}
+
+/// A known OE(2,2) system.
+pub fn oe22() -> (Vec<f64>, Vec<f64>) {
+    (vec![0.5, 0.3], f_from_poles(&[(0.9, 0.5)], &[]))
+}
+
+/// A known OE(10,10) system: two lightly damped resonances and real poles.
+pub fn oe1010() -> (Vec<f64>, Vec<f64>) {
+    let f = f_from_poles(&[(0.985, 0.45), (0.97, 1.3), (0.9, 2.2)], &[0.8, 0.5, -0.3, 0.6]);
+    let b = vec![0.02, 0.05, -0.03, 0.04, 0.01, -0.02, 0.03, 0.015, -0.01, 0.005];
+    (b, f)
+}

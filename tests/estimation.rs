@@ -1,0 +1,187 @@
+//! Estimation core against known solutions, finite differences and invariants (METHOD.md 2-6).
+
+mod common;
+
+use common::*;
+use oesweep::estimate::normal::{Layout, NormalEquations};
+use oesweep::estimate::{self, Judge, Loss, Problem, SolverOptions, Workspace, solver};
+use oesweep::oe;
+
+fn assert_params(got: &[f64], truth: &[f64], tol: f64, what: &str) {
+    let scale = truth.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    for (i, (g, t)) in got.iter().zip(truth).enumerate() {
+        assert!((g - t).abs() <= tol * scale.max(t.abs()), "{what}: theta[{i}] = {g}, true {t}");
+    }
+}
+
+fn recover(b: &[f64], f: &[f64], n: usize) {
+    let u = binary_input(n, 3, 10.0, 7);
+    let y = oe::simulate_vec(b, f, 1, &u);
+    let truth = [b, f].concat();
+    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1 };
+    let opts = SolverOptions::default();
+    let mut ws = Workspace::new();
+    let judge = Judge::default();
+    let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
+    assert!(ls.termination.converged(), "{:?}", ls.termination);
+    assert_params(&ls.theta(), &truth, 1e-6, "L2");
+    for k in [0.1, 1.5] {
+        let h = estimate::fit_huber(&prob, ls.sigma, k, &ls.theta(), &judge, &opts, &mut ws);
+        assert!(h.termination.converged(), "{:?}", h.termination);
+        assert_params(&[&h.b[..], &h.f[..]].concat(), &truth, 1e-6, &format!("Huber k={k}"));
+    }
+    // The solver itself (not only the ARX/IV start) must find the truth from a poor start:
+    // scale B by 1/2 and shrink the poles towards the origin.
+    let mut start = truth.clone();
+    for v in &mut start[..b.len()] {
+        *v *= 0.5;
+    }
+    for (j, v) in start[b.len()..].iter_mut().enumerate() {
+        *v *= 0.97f64.powi(j as i32 + 1);
+    }
+    let ls2 = estimate::fit_ls_from(&prob, &start, &judge, &opts, &mut ws);
+    assert!(ls2.termination.converged(), "{:?}", ls2.termination);
+    assert_params(&ls2.theta(), &truth, 1e-6, "L2 from a perturbed start");
+    let g = 0.05 * (y.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
+    let sol = solver::minimise(&prob, Loss::Huber { gamma: g }, &start, &opts, &mut ws);
+    assert!(sol.termination.converged(), "{:?}", sol.termination);
+    assert_params(&sol.theta, &truth, 1e-6, "Huber from a perturbed start");
+}
+
+#[test]
+fn noise_free_oe22_recovers_true_parameters() {
+    let (b, f) = oe22();
+    recover(&b, &f, 2000);
+}
+
+#[test]
+fn noise_free_oe1010_recovers_true_parameters() {
+    let (b, f) = oe1010();
+    recover(&b, &f, 5000);
+}
+
+/// Predictor Jacobian rows (two 1/F passes, METHOD.md 2) against central differences.
+#[test]
+fn jacobian_matches_finite_differences() {
+    let (b, f) = oe1010();
+    let n = 400;
+    let u = binary_input(n, 2, 1.0, 3);
+    let lay = Layout { nb: b.len(), nf: f.len(), delay: 1 };
+    let theta: Vec<f64> = [&b[..], &f[..]].concat().iter().map(|v| v * 0.99).collect();
+    let (tb, tf) = theta.split_at(b.len());
+    let yhat = oe::simulate_vec(tb, tf, 1, &u);
+    let mut xu = u.clone();
+    oe::inv_f_in_place(tf, &mut xu);
+    let mut xy = yhat.clone();
+    oe::inv_f_in_place(tf, &mut xy);
+    let d = theta.len();
+    let mut row = vec![0.0; d];
+    let h = 1e-6;
+    for c in 0..d {
+        let mut tp = theta.clone();
+        let mut tm = theta.clone();
+        tp[c] += h;
+        tm[c] -= h;
+        let yp = oe::simulate_vec(&tp[..b.len()], &tp[b.len()..], 1, &u);
+        let ym = oe::simulate_vec(&tm[..b.len()], &tm[b.len()..], 1, &u);
+        let mut worst: f64 = 0.0;
+        let mut scale: f64 = 0.0;
+        for t in 0..n {
+            lay.row(&xu, &xy, t, &mut row);
+            let fd = (yp[t] - ym[t]) / (2.0 * h);
+            worst = worst.max((fd - row[c]).abs());
+            scale = scale.max(fd.abs());
+        }
+        assert!(worst <= 1e-6 * scale.max(1e-12), "column {c}: max error {worst} (scale {scale})");
+    }
+}
+
+/// Gradient of W assembled from the normal equations against central differences of W.
+#[test]
+fn huber_gradient_matches_finite_differences() {
+    let (b, f) = oe22();
+    let n = 1500;
+    let u = binary_input(n, 2, 1.0, 5);
+    let mut rng = Lcg(11);
+    let y: Vec<f64> = oe::simulate_vec(&b, &f, 1, &u).iter().map(|v| v + 0.3 * rng.normal()).collect();
+    let theta = vec![0.45, 0.33, f[0] * 0.98, f[1] * 1.01];
+    let gamma = 0.2;
+    let loss = Loss::Huber { gamma };
+    let crit = |th: &[f64]| loss.criterion(&y, &oe::simulate_vec(&th[..2], &th[2..], 1, &u));
+    let yhat = oe::simulate_vec(&theta[..2], &theta[2..], 1, &u);
+    let r: Vec<f64> = y.iter().zip(&yhat).map(|(a, b)| loss.psi(a - b)).collect();
+    let mut xu = u.clone();
+    oe::inv_f_in_place(&theta[2..], &mut xu);
+    let mut xy = yhat.clone();
+    oe::inv_f_in_place(&theta[2..], &mut xy);
+    let (mut h, mut g) = (vec![0.0; 16], vec![0.0; 4]);
+    NormalEquations::default().build(&Layout { nb: 2, nf: 2, delay: 1 }, &xu, &xy, None, &r, &mut h, &mut g);
+    for c in 0..4 {
+        let step = 1e-6;
+        let mut tp = theta.clone();
+        let mut tm = theta.clone();
+        tp[c] += step;
+        tm[c] -= step;
+        let fd = (crit(&tp) - crit(&tm)) / (2.0 * step);
+        // g is the negative gradient
+        assert!((fd + g[c]).abs() <= 1e-5 * fd.abs().max(1e-8), "param {c}: fd {fd}, analytic {}", -g[c]);
+    }
+}
+
+struct Outlier {
+    u: Vec<f64>,
+    y: Vec<f64>,
+    uv: Vec<f64>,
+    yv0: Vec<f64>,
+}
+
+/// Our OE(10,10) system with Gaussian noise and 10% large spikes; noise-free validation.
+fn outlier_data(frac: f64) -> Outlier {
+    let (b, f) = oe1010();
+    let n = 4000;
+    let u = binary_input(n, 3, 10.0, 21);
+    let uv = binary_input(n, 3, 10.0, 22);
+    let y0 = oe::simulate_vec(&b, &f, 1, &u);
+    let scale = (y0.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
+    let mut rng = Lcg(99);
+    let y = y0
+        .iter()
+        .map(|v| {
+            let mut e = 0.01 * scale * rng.normal();
+            if rng.next() < frac {
+                let m = scale * (1.0 + 2.0 * rng.next());
+                e += if rng.next() < 0.5 { -m } else { m };
+            }
+            v + e
+        })
+        .collect();
+    let yv0 = oe::simulate_vec(&b, &f, 1, &uv);
+    Outlier { u, y, uv, yv0 }
+}
+
+#[test]
+fn huber_beats_least_squares_with_outliers_and_invariants_hold() {
+    let d = outlier_data(0.10);
+    let prob = Problem { u: &d.u, y: &d.y, nb: 10, nf: 10, delay: 1 };
+    let judge = Judge { validation: Some((&d.uv, &d.yv0)), band: None };
+    let opts = SolverOptions::default();
+    let mut ws = Workspace::new();
+    ws.record_trace = true;
+    let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
+    let ls_val = ls.assessment.fit_val.unwrap();
+    let mut last_l1c = -1.0;
+    for &k in &[2.0, 1.0, 0.5, 0.2, 0.1, 0.05] {
+        let h = estimate::fit_huber(&prob, ls.sigma, k, &ls.theta(), &judge, &opts, &mut ws);
+        // W never increases over accepted steps.
+        for w in ws.trace.windows(2) {
+            assert!(w[1] < w[0], "k={k}: criterion rose from {} to {}", w[0], w[1]);
+        }
+        assert!(oe::is_stable(&h.f) && h.assessment.max_pole_radius < 1.0, "k={k}: unstable F");
+        assert!(h.l1c >= last_l1c, "k={k}: L1C {} fell below {}", h.l1c, last_l1c);
+        last_l1c = h.l1c;
+        if k <= 0.1 {
+            let hv = h.assessment.fit_val.unwrap();
+            assert!(hv >= ls_val + 5.0, "k={k}: Huber validation fit {hv:.2} vs L2 {ls_val:.2}");
+        }
+    }
+}
