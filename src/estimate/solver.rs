@@ -361,11 +361,6 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
                 let rel_actual = (crit - new_crit) / crit;
                 let rel_pred = pred.abs() / crit;
                 let small_step = step <= opts.xtol * (norm2(&ws.theta) + opts.xtol);
-                if std::env::var("OESWEEP_DEBUG").is_ok() {
-                    eprintln!(
-                        "it {it} crit {new_crit:.12e} lambda {lambda:.3e} rho {rho:.3} rel {rel_actual:.3e} pred {rel_pred:.3e} step {step:.3e} refl {reflected}"
-                    );
-                }
                 std::mem::swap(&mut ws.theta, &mut ws.trial);
                 std::mem::swap(&mut ws.yhat, &mut ws.trial_yhat);
                 crit = new_crit;
