@@ -10,5 +10,8 @@ pub mod estimate;
 pub mod oe;
 pub mod simulate;
 pub mod spectral;
+pub mod table;
+pub mod export;
+pub mod reduce;
 
 pub use error::{Error, Result};

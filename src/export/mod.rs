@@ -1,0 +1,2 @@
+//! Result files. (being written)
+pub mod parquet;

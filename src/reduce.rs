@@ -1,0 +1,1 @@
+//! Model choice (being written)
