@@ -6,8 +6,15 @@
 use crate::data::{self, Record};
 use crate::error::{Error, Result};
 use crate::estimate::{self, HuberFit, HuberHessian, Judge, LsFit, Problem, SolverOptions, Workspace};
+use crate::export;
+use crate::job::{self, Inputs, ValidJob};
+use crate::plan::Plan;
+use crate::progress::Progress;
+use crate::reduce::{self, ReduceOptions};
 use crate::simulate;
+use crate::spectral::SpectralEstimate;
 use crate::spectral::{self, WelchOptions};
+use crate::sweep::{self, Context};
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -25,6 +32,28 @@ pub enum Command {
     Fit(FitArgs),
     /// Make example data: PRBS input through an OE system, plus noise and outliers.
     Simulate(SimulateArgs),
+    /// Validate a job file and its data without estimating; print the grid and the output folder.
+    Plan(PlanArgs),
+    /// Run a job: estimate every cell, write the result tables and the model picks.
+    Run(RunArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct PlanArgs {
+    /// Job file (JSON).
+    pub job: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// Job file (JSON).
+    pub job: PathBuf,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// No progress output.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 #[derive(Args, Debug)]
@@ -125,6 +154,8 @@ pub fn run(cli: Cli) -> Result<u8> {
     match cli.command {
         Command::Fit(a) => run_fit(&a),
         Command::Simulate(a) => run_simulate(&a),
+        Command::Plan(a) => run_plan(&a),
+        Command::Run(a) => run_job(&a),
     }
 }
 
@@ -318,4 +349,122 @@ fn run_simulate(a: &SimulateArgs) -> Result<u8> {
     simulate::write_csv(&a.out, &rec)?;
     eprintln!("wrote {} ({} samples)", a.out.display(), a.n);
     Ok(0)
+}
+
+/// A job, its data and everything derived from them before estimation starts.
+struct Prepared {
+    job: ValidJob,
+    inputs: Inputs,
+    spectral: Option<(SpectralEstimate, Vec<usize>)>,
+    plan: Plan,
+}
+
+fn prepare(path: &Path) -> Result<Prepared> {
+    let mut job = job::load(path)?;
+    let inputs = job::load_inputs(&mut job)?;
+    let spectral = match job.job.band_hz {
+        Some([lo, hi]) => {
+            let s = spectral::welch(&inputs.est.u, &inputs.est.y, job.ts(), &WelchOptions::default())
+                .map_err(|e| Error::input(&job.job.data.path, format!("spectral estimate: {e}")))?;
+            let bins = s.band(lo, hi);
+            if bins.is_empty() {
+                return Err(Error::input(
+                    path,
+                    format!("field 'band_hz': [{lo}, {hi}] Hz holds no frequency bin of the spectral estimate"),
+                ));
+            }
+            Some((s, bins))
+        }
+        None => None,
+    };
+    let plan = Plan::from_job(&job);
+    Ok(Prepared { job, inputs, spectral, plan })
+}
+
+fn describe_grid(job: &ValidJob) -> String {
+    let ks = &job.ks;
+    let (kmin, kmax) = ks.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &k| (a.min(k), b.max(k)));
+    format!(
+        "nB {}..{} x nF {}..{} x {} values of k in [{kmin}, {kmax}]",
+        job.nb[0],
+        job.nb[job.nb.len() - 1],
+        job.nf[0],
+        job.nf[job.nf.len() - 1],
+        ks.len()
+    )
+}
+
+fn run_plan(a: &PlanArgs) -> Result<u8> {
+    let p = prepare(&a.job)?;
+    let j = &p.job;
+    println!("job        {} ({})", j.job.name, j.file.display());
+    println!("data       {} ({} samples, Ts = {} s)", j.job.data.path.display(), p.inputs.est.u.len(), j.ts());
+    if let (Some(v), Some(rec)) = (&j.job.validation, &p.inputs.val) {
+        println!("validation {} ({} samples, column '{}')", v.path.display(), rec.u.len(), rec.y_name);
+    }
+    println!("grid       {}", describe_grid(j));
+    println!("cells      {} Huber cells + {} least-squares fits", j.n_cells(), j.n_pairs());
+    println!("start      {}", j.job.start.as_str());
+    println!("ranking    by {:?} fit", reduce::choose_basis(p.inputs.val.is_some(), p.spectral.is_some()));
+    println!("output     {}", j.output().display());
+    Ok(0)
+}
+
+/// `job.json` in the output folder: the normalised job and the program that ran it.
+#[derive(serde::Serialize)]
+struct JobAsRun<'a> {
+    oesweep_version: &'static str,
+    #[serde(flatten)]
+    job: &'a job::Job,
+}
+
+fn run_job(a: &RunArgs) -> Result<u8> {
+    let p = prepare(&a.job)?;
+    let out = p.job.output().to_path_buf();
+    std::fs::create_dir_all(&out).map_err(|e| Error::output(&out, format!("cannot create output folder: {e}")))?;
+    let ctx = Context {
+        est: &p.inputs.est,
+        val: p.inputs.val.as_ref(),
+        band: p.spectral.as_ref().map(|(s, b)| (s, &b[..])),
+        solver: p.job.job.solver.clone(),
+    };
+    let progress = Progress::new(p.plan.n_cells(), a.quiet);
+    let outcome = sweep::run(&p.plan, &ctx, a.threads, &progress);
+    progress.finish();
+
+    let basis = reduce::choose_basis(p.inputs.val.is_some(), p.spectral.is_some());
+    let sel_opts = ReduceOptions {
+        basis,
+        min_tolerance: p.job.job.selection.min_tolerance,
+        fit_tolerance: p.job.job.selection.fit_tolerance,
+    };
+    let selection = reduce::select(&outcome.rows, &sel_opts);
+    export::parquet::write_cells(&out.join("cells.parquet"), &outcome.rows)?;
+    export::json::write_json(&out.join("selection.json"), &selection)?;
+    export::json::write_json(
+        &out.join("job.json"),
+        &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job: &p.job.job },
+    )?;
+
+    let cells = p.plan.n_cells();
+    let failed = outcome.failed_cells();
+    println!("{}: {} cells ({} failed) + {} least-squares fits", p.job.job.name, cells, failed, p.plan.pairs.len());
+    println!("wall time {:.2} s, {:.1} cells/s", outcome.seconds, cells as f64 / outcome.seconds.max(1e-9));
+    for (label, pick) in [("M1 (W minima)  ", &selection.m1), ("M2 (L1C minima)", &selection.m2)] {
+        match pick {
+            Some(m) => println!(
+                "{label} OE({}, {}) k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  fit = {}",
+                m.model.nb,
+                m.model.nf,
+                m.model.k,
+                m.model.gamma,
+                m.model.criterion,
+                100.0 * m.model.l1c,
+                opt_pct(Some(m.model.score))
+            ),
+            None => println!("{label} none (no usable cell)"),
+        }
+    }
+    println!("results in {}", out.display());
+    Ok(if failed > 0 { 1 } else { 0 })
 }

@@ -7,11 +7,16 @@ pub mod cli;
 pub mod data;
 pub mod error;
 pub mod estimate;
+pub mod export;
+pub mod job;
+pub mod kernels;
 pub mod oe;
+pub mod plan;
+pub mod progress;
+pub mod reduce;
 pub mod simulate;
 pub mod spectral;
+pub mod sweep;
 pub mod table;
-pub mod export;
-pub mod reduce;
 
 pub use error::{Error, Result};

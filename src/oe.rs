@@ -11,69 +11,20 @@
 //! The predictor gradient needs only two `1/F` passes (METHOD.md 2):
 //! `d yhat_t/d b_i = [(1/F) u]_{t-d-i+1}`, `d yhat_t/d f_j = -[(1/F) yhat]_{t-j}`.
 //!
-//! The `1/F` recursion is the innermost loop of every solver, so it is specialised on the
-//! filter order with const generics: a fixed-size state lives in registers, which the
-//! prototype measured ~6x faster than a loop over a runtime-length slice.
+//! The `1/F` recursion is the innermost loop of every solver: it lives in [`crate::kernels`],
+//! specialised on the filter order (state in registers) and built with and without FMA.
 
+use crate::kernels;
 use faer::Mat;
 
 /// Apply `1/F` in place: `x_t <- x_t - sum_j f_j x_{t-j}` (zero initial conditions).
-/// Orders up to 24 run a const-generic recursion; higher orders the generic loop.
 pub fn inv_f_in_place(f: &[f64], x: &mut [f64]) {
-    macro_rules! dispatch {
-        ($($n:literal)*) => {
-            match f.len() {
-                0 => {}
-                $($n => inv_f_fixed::<$n>(f, x),)*
-                _ => inv_f_generic(f, x),
-            }
-        };
-    }
-    dispatch!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24);
-}
-
-#[inline(always)]
-fn inv_f_fixed<const M: usize>(f: &[f64], x: &mut [f64]) {
-    let mut a = [0.0; M];
-    a.copy_from_slice(&f[..M]);
-    // s[j] holds x_{t-1-j}: the last M outputs, newest first.
-    let mut s = [0.0; M];
-    for xt in x.iter_mut() {
-        let mut acc = *xt;
-        for j in 0..M {
-            acc -= a[j] * s[j];
-        }
-        for j in (1..M).rev() {
-            s[j] = s[j - 1];
-        }
-        s[0] = acc;
-        *xt = acc;
-    }
-}
-
-fn inv_f_generic(f: &[f64], x: &mut [f64]) {
-    for t in 0..x.len() {
-        let mut acc = x[t];
-        for (j, fj) in f.iter().enumerate().take(t) {
-            acc -= fj * x[t - 1 - j];
-        }
-        x[t] = acc;
-    }
+    kernels::inv_f(f, x)
 }
 
 /// FIR part of the model: `out_t = sum_i b_i u_{t-d-i+1}`.
 pub fn delayed_fir(b: &[f64], delay: usize, u: &[f64], out: &mut [f64]) {
-    assert_eq!(u.len(), out.len());
-    out.fill(0.0);
-    for (i, &bi) in b.iter().enumerate() {
-        let lag = delay + i;
-        if lag >= u.len() {
-            break;
-        }
-        for (o, &ui) in out[lag..].iter_mut().zip(u) {
-            *o += bi * ui;
-        }
-    }
+    kernels::fir(b, delay, u, out)
 }
 
 /// Simulated output (= one-step predictor of an OE model), zero initial conditions.
@@ -252,21 +203,6 @@ pub fn reflect_unstable(f: &mut [f64]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn inv_f_specialised_matches_generic() {
-        let x0: Vec<f64> = (0..200).map(|t| ((t * 37 % 11) as f64 - 5.0) * 0.3).collect();
-        for n in 1..=30 {
-            let f: Vec<f64> = (0..n).map(|j: i32| 0.5f64.powi(j + 1) * if j % 2 == 0 { -1.0 } else { 0.7 }).collect();
-            let mut a = x0.clone();
-            let mut b = x0.clone();
-            inv_f_in_place(&f, &mut a);
-            inv_f_generic(&f, &mut b);
-            for (p, q) in a.iter().zip(&b) {
-                assert!((p - q).abs() <= 1e-12 * (1.0 + q.abs()), "n={n}");
-            }
-        }
-    }
 
     #[test]
     fn simulate_matches_difference_equation() {

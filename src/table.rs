@@ -101,17 +101,9 @@ impl CellRow {
         }
     }
 
-    /// Row of a Huber fit.
-    pub fn from_huber(
-        h: &HuberFit,
-        nb: usize,
-        nf: usize,
-        delay: usize,
-        sigma: f64,
-        k_index: usize,
-        start: &str,
-        seconds: f64,
-    ) -> Self {
+    /// Row of a Huber fit of the order pair whose least-squares fit is `ls`.
+    pub fn from_huber(h: &HuberFit, ls: &LsFit, k_index: usize, start: &str, seconds: f64) -> Self {
+        let (nb, nf, delay, sigma) = (ls.nb, ls.nf, ls.delay, ls.sigma);
         let ok = h.criterion.is_finite() && h.termination != crate::estimate::Termination::NonFinite;
         CellRow {
             method: Method::Huber,

@@ -155,6 +155,7 @@ pub struct Workspace {
     pub(crate) yhat: Vec<f64>,
     trial_yhat: Vec<f64>,
     xu: Vec<f64>,
+    trial_xu: Vec<f64>,
     xy: Vec<f64>,
     r: Vec<f64>,
     w: Vec<f64>,
@@ -176,7 +177,15 @@ impl Workspace {
     }
 
     fn prepare(&mut self, n: usize, d: usize) {
-        for v in [&mut self.yhat, &mut self.trial_yhat, &mut self.xu, &mut self.xy, &mut self.r, &mut self.w] {
+        for v in [
+            &mut self.yhat,
+            &mut self.trial_yhat,
+            &mut self.xu,
+            &mut self.trial_xu,
+            &mut self.xy,
+            &mut self.r,
+            &mut self.w,
+        ] {
             v.resize(n, 0.0);
         }
         for v in [&mut self.h, &mut self.a] {
@@ -256,7 +265,11 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
     // Residuals at this level are rounding noise of the simulation.
     let exact_level = 1e-26 * y_scale.max(f64::MIN_POSITIVE);
 
-    oe::simulate(&ws.theta[..nb], &ws.theta[nb..], prob.delay, prob.u, &mut ws.yhat);
+    // yhat = q^-d B (1/F) u = B applied to xu = (1/F) u (LTI operators commute, zero initial
+    // conditions): one 1/F pass per evaluation serves both the simulation and the Jacobian.
+    ws.xu.copy_from_slice(prob.u);
+    oe::inv_f_in_place(&ws.theta[nb..], &mut ws.xu);
+    oe::delayed_fir(&ws.theta[..nb], prob.delay, &ws.xu, &mut ws.yhat);
     let mut crit = loss.criterion(prob.y, &ws.yhat);
     let finish = |ws: &mut Workspace, crit, iterations, termination, reflections| Solution {
         theta: ws.theta.clone(),
@@ -301,8 +314,6 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
                 }
             }
         }
-        ws.xu.copy_from_slice(prob.u);
-        oe::inv_f_in_place(&ws.theta[nb..], &mut ws.xu);
         ws.xy.copy_from_slice(&ws.yhat);
         oe::inv_f_in_place(&ws.theta[nb..], &mut ws.xy);
         let w = if use_weights { Some(&ws.w[..]) } else { None };
@@ -351,7 +362,9 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
                 oe::reflect_unstable(&mut ws.trial[nb..]);
                 reflected = true;
             }
-            oe::simulate(&ws.trial[..nb], &ws.trial[nb..], prob.delay, prob.u, &mut ws.trial_yhat);
+            ws.trial_xu.copy_from_slice(prob.u);
+            oe::inv_f_in_place(&ws.trial[nb..], &mut ws.trial_xu);
+            oe::delayed_fir(&ws.trial[..nb], prob.delay, &ws.trial_xu, &mut ws.trial_yhat);
             let new_crit = loss.criterion(prob.y, &ws.trial_yhat);
             if new_crit.is_finite() && new_crit < crit {
                 let rho = if pred > 0.0 { (crit - new_crit) / pred } else { 0.0 };
@@ -363,6 +376,7 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
                 let small_step = step <= opts.xtol * (norm2(&ws.theta) + opts.xtol);
                 std::mem::swap(&mut ws.theta, &mut ws.trial);
                 std::mem::swap(&mut ws.yhat, &mut ws.trial_yhat);
+                std::mem::swap(&mut ws.xu, &mut ws.trial_xu);
                 crit = new_crit;
                 if reflected {
                     reflections += 1;

@@ -1,2 +1,97 @@
-//! Result files. (being written)
+//! Result files: the cell table (`parquet`) and JSON documents such as the model selection (`json`).
+//!
+//! Every file is written atomically: the bytes go to `<path>.tmp-<pid>` in the same folder, are
+//! fsynced, and the temporary file is renamed over `path`. A reader (or a resumed sweep) therefore
+//! sees either the previous complete file or the new complete file, never a torn one, even if the
+//! process is killed mid-write. The temporary file lives in the target folder because a rename is
+//! only atomic within one file system.
+
+pub mod json;
 pub mod parquet;
+
+use crate::error::{Error, Result};
+use std::ffi::OsString;
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+/// Temporary sibling of `path` used while writing it.
+fn temporary_path(path: &Path) -> Result<PathBuf> {
+    let name = path.file_name().ok_or_else(|| Error::output(path, "not a file path"))?;
+    let mut tmp: OsString = name.to_os_string();
+    tmp.push(format!(".tmp-{}", std::process::id()));
+    Ok(path.with_file_name(tmp))
+}
+
+/// Write `path` atomically: `write` fills a temporary file in the same folder, which is fsynced
+/// and renamed over `path`. On any failure the temporary file is removed and `path` is untouched.
+/// `write` reports failures as a message; the returned error names `path`.
+pub(crate) fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut File) -> std::result::Result<(), String>,
+) -> Result<()> {
+    let tmp = temporary_path(path)?;
+    let result = (|| {
+        let mut file = File::create(&tmp).map_err(|e| format!("cannot create {}: {e}", tmp.display()))?;
+        write(&mut file)?;
+        // Without the fsync a crash after the rename could leave an empty or partial file under
+        // the final name on some file systems.
+        file.sync_all().map_err(|e| format!("cannot flush {}: {e}", tmp.display()))?;
+        drop(file);
+        std::fs::rename(&tmp, path).map_err(|e| format!("cannot rename {} into place: {e}", tmp.display()))
+    })();
+    match result {
+        Ok(()) => {
+            sync_parent(path);
+            Ok(())
+        }
+        Err(msg) => {
+            // Best effort: the file may not exist if creating it failed.
+            let _ = std::fs::remove_file(&tmp);
+            Err(Error::output(path, msg))
+        }
+    }
+}
+
+/// Make the rename durable by fsyncing the folder. Best effort: not every platform or file
+/// system allows opening a directory, and the file content itself is already safe.
+fn sync_parent(path: &Path) {
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if let Ok(dir) = File::open(parent) {
+        let _ = dir.sync_all();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn export_temporary_path_is_a_sibling() {
+        let tmp = temporary_path(Path::new("out/cells.parquet")).unwrap();
+        assert_eq!(tmp.parent(), Some(Path::new("out")));
+        assert_eq!(tmp.file_name().unwrap().to_str().unwrap(), format!("cells.parquet.tmp-{}", std::process::id()));
+        assert!(temporary_path(Path::new("/")).is_err());
+    }
+
+    #[test]
+    fn export_failed_write_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.txt");
+        std::fs::write(&path, "old").unwrap();
+        let err = write_atomically(&path, |_| Err("boom".to_string())).unwrap_err();
+        assert!(err.to_string().contains("a.txt") && err.to_string().contains("boom"), "{err}");
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn export_missing_folder_is_an_output_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("no/such/a.txt");
+        let err = write_atomically(&path, |_| Ok(())).unwrap_err();
+        assert!(matches!(err, Error::Output { .. }) && err.to_string().contains("a.txt"), "{err}");
+    }
+}

@@ -1,0 +1,147 @@
+//! The kernels one Levenberg-Marquardt iteration is made of, at the paper's M2 size OE(12,12)
+//! on the bundled N = 5000 record (METHOD.md 2-3).
+//!
+//! An iteration simulates the model (FIR + one 1/F pass), filters u and yhat through 1/F for
+//! the Jacobian, builds the normal equations from lagged dot products, solves a d x d system
+//! and simulates the trial point. The d x d solve is private to the solver, so instead of
+//! timing it alone, `one_iteration` times a whole `minimise` capped at one iteration; the
+//! difference to the sum of the kernels is the solve plus bookkeeping.
+//!
+//! Run: `cargo bench --bench kernels` (under a minute).
+
+use std::hint::black_box;
+use std::path::Path;
+use std::time::Duration;
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use oesweep::estimate::normal::{Layout, NormalEquations};
+use oesweep::estimate::{self, Judge, Loss, Problem, SolverOptions, Workspace, solver};
+use oesweep::oe;
+
+const NB: usize = 12;
+const NF: usize = 12;
+const DELAY: usize = 1;
+/// The paper's k for M2.
+const K: f64 = 0.0875;
+
+/// The bundled estimation record and the two points the Huber phase runs between: theta_LS
+/// (its start) and theta_H (its solution), with gamma = K sigma_LS.
+struct Setup {
+    u: Vec<f64>,
+    y: Vec<f64>,
+    theta_ls: Vec<f64>,
+    theta_h: Vec<f64>,
+    gamma: f64,
+}
+
+fn setup() -> Setup {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_est.csv");
+    let rec = oesweep::data::read_record(&path, "u", "y").expect("bundled estimation data");
+    let (u, y) = (rec.u, rec.y);
+    let prob = Problem { u: &u, y: &y, nb: NB, nf: NF, delay: DELAY };
+    let opts = SolverOptions::default();
+    let mut ws = Workspace::new();
+    let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
+    let gamma = K * ls.sigma;
+    let theta_ls = ls.theta();
+    let theta_h = solver::minimise(&prob, Loss::Huber { gamma }, &theta_ls, &opts, &mut ws).theta;
+    Setup { u, y, theta_ls, theta_h, gamma }
+}
+
+/// Inputs of `NormalEquations::build` at `theta`, as the solver forms them: the 1/F-filtered
+/// u and yhat, and the residuals e.
+fn jacobian_sequences(s: &Setup, theta: &[f64]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let (b, f) = theta.split_at(NB);
+    let yhat = oe::simulate_vec(b, f, DELAY, &s.u);
+    let e: Vec<f64> = s.y.iter().zip(&yhat).map(|(y, yh)| y - yh).collect();
+    let mut xu = s.u.clone();
+    oe::inv_f_in_place(f, &mut xu);
+    let mut xy = yhat;
+    oe::inv_f_in_place(f, &mut xy);
+    (xu, xy, e)
+}
+
+/// Exact Gauss-Newton Huber weights (1 on the L2 set, 0 on the L1 set) and psi_g(e).
+fn huber_weights(e: &[f64], gamma: f64) -> (Vec<f64>, Vec<f64>) {
+    let w = e.iter().map(|x| if x.abs() <= gamma { 1.0 } else { 0.0 }).collect();
+    let r = e.iter().map(|x| x.clamp(-gamma, gamma)).collect();
+    (w, r)
+}
+
+fn filters(c: &mut Criterion, s: &Setup) {
+    let (b, f) = s.theta_h.split_at(NB);
+    let mut out = vec![0.0; s.u.len()];
+    c.bench_function("simulate", |bch| bch.iter(|| oe::simulate(black_box(b), black_box(f), DELAY, &s.u, &mut out)));
+    // Filtering in place repeatedly would compound the DC gain of 1/F towards overflow, so each
+    // pass starts from a fresh copy of u; the 40 kB copy is ~1 us of the measured time.
+    c.bench_function("inv_f", |bch| {
+        bch.iter(|| {
+            out.copy_from_slice(&s.u);
+            oe::inv_f_in_place(black_box(f), &mut out)
+        })
+    });
+}
+
+fn normal_equations(c: &mut Criterion, s: &Setup) {
+    let lay = Layout { nb: NB, nf: NF, delay: DELAY };
+    let d = lay.dim();
+    let (mut h, mut g) = (vec![0.0; d * d], vec![0.0; d]);
+    let mut ne = NormalEquations::default();
+    let mut group = c.benchmark_group("normal_equations");
+
+    // L2 phase: all weights 1, Gram matrix from lagged dot products only.
+    let (xu, xy, e) = jacobian_sequences(s, &s.theta_ls);
+    group.bench_function(BenchmarkId::from_parameter("unweighted"), |bch| {
+        bch.iter(|| ne.build(&lay, black_box(&xu), black_box(&xy), None, &e, &mut h, &mut g))
+    });
+
+    // Huber phase, two regimes of the same build: at its solution only the spikes (~5 %) are
+    // in the L1 set and are subtracted from the Gram matrix; at its start, theta_LS, most
+    // residuals exceed gamma = k sigma and the L2 rows are summed directly instead.
+    for (name, theta) in [("huber_solution", &s.theta_h), ("huber_start", &s.theta_ls)] {
+        let (xu, xy, e) = jacobian_sequences(s, theta);
+        let (w, r) = huber_weights(&e, s.gamma);
+        let zeros = w.iter().filter(|&&x| x == 0.0).count();
+        eprintln!("normal_equations/{name}: {:.1} % of rows have weight 0", 100.0 * zeros as f64 / w.len() as f64);
+        group.bench_function(BenchmarkId::from_parameter(name), |bch| {
+            bch.iter(|| ne.build(&lay, black_box(&xu), black_box(&xy), Some(&w), &r, &mut h, &mut g))
+        });
+    }
+    group.finish();
+}
+
+fn one_iteration(c: &mut Criterion, s: &Setup) {
+    let prob = Problem { u: &s.u, y: &s.y, nb: NB, nf: NF, delay: DELAY };
+    let opts = SolverOptions { max_iterations: 1, ..Default::default() };
+    let loss = Loss::Huber { gamma: s.gamma };
+    let mut ws = Workspace::new();
+    // From theta_LS, as the first iteration of the Huber phase: includes the start-point
+    // simulation and criterion that every minimise call pays once.
+    c.bench_function("one_iteration", |bch| {
+        bch.iter(|| solver::minimise(black_box(&prob), loss, &s.theta_ls, &opts, &mut ws))
+    });
+}
+
+fn kernels(c: &mut Criterion) {
+    let s = setup();
+    filters(c, &s);
+    normal_equations(c, &s);
+    one_iteration(c, &s);
+}
+
+fn config() -> Criterion {
+    // Kernels take 10-500 us, so 2 s per benchmark already gives thousands of calls.
+    Criterion::default()
+        .sample_size(30)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2))
+        // Plot rendering (plotters backend) took longer than the measurements themselves.
+        .without_plots()
+}
+
+criterion_group! {
+    name = benches;
+    config = config();
+    targets = kernels
+}
+criterion_main!(benches);

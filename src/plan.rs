@@ -1,0 +1,52 @@
+//! The plan: a validated job expanded into order pairs and cells (nB, nF, k).
+//!
+//! Order is fixed and independent of threads: pairs in (nB, nF) order, k in the job's order.
+//! The least-squares phase depends only on the pair (METHOD.md 5), so the pair is the unit
+//! that owns it and the cells of a pair share its result.
+
+use crate::job::{StartStrategy, ValidJob};
+
+/// An order pair (nB, nF).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Pair {
+    pub nb: usize,
+    pub nf: usize,
+}
+
+/// One Huber cell: an order pair and an index into the k grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Cell {
+    pub pair: usize,
+    pub k_index: usize,
+}
+
+#[derive(Clone, Debug)]
+pub struct Plan {
+    pub delay: usize,
+    pub pairs: Vec<Pair>,
+    pub ks: Vec<f64>,
+    pub start: StartStrategy,
+}
+
+impl Plan {
+    pub fn from_job(job: &ValidJob) -> Plan {
+        let pairs = job.nb.iter().flat_map(|&nb| job.nf.iter().map(move |&nf| Pair { nb, nf })).collect();
+        Plan { delay: job.job.delay, pairs, ks: job.ks.clone(), start: job.job.start }
+    }
+
+    pub fn n_cells(&self) -> usize {
+        self.pairs.len() * self.ks.len()
+    }
+
+    /// All cells, pair-major.
+    pub fn cells(&self) -> Vec<Cell> {
+        (0..self.pairs.len()).flat_map(|p| (0..self.ks.len()).map(move |k| Cell { pair: p, k_index: k })).collect()
+    }
+
+    /// k indices in continuation order: largest k first (closest to least squares), then down.
+    pub fn k_chain(&self) -> Vec<usize> {
+        let mut idx: Vec<usize> = (0..self.ks.len()).collect();
+        idx.sort_by(|&a, &b| self.ks[b].total_cmp(&self.ks[a]).then(a.cmp(&b)));
+        idx
+    }
+}

@@ -1,0 +1,116 @@
+//! The sweep engine end to end through the binary: job file -> cells.parquet, selection.json,
+//! job.json; determinism across thread counts; picks on low-noise data.
+
+mod common;
+
+use oesweep::export::parquet::read_cells;
+use oesweep::table::{CellRow, Method};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn oesweep(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_oesweep")).args(args).output().expect("binary runs")
+}
+
+/// Simulated OE(2,2) data (low noise, a few spikes) and a job over a small grid around it.
+fn setup(dir: &Path, out: &str, start: &str) -> PathBuf {
+    let (b, f) = common::oe22();
+    std::fs::write(dir.join("sys.json"), serde_json::json!({"b": b, "f": f, "delay": 1}).to_string()).unwrap();
+    for (name, seed) in [("est.csv", "1"), ("val.csv", "2")] {
+        if dir.join(name).exists() {
+            continue;
+        }
+        let o = oesweep(&[
+            "simulate",
+            "--system",
+            dir.join("sys.json").to_str().unwrap(),
+            "--out",
+            dir.join(name).to_str().unwrap(),
+            "--n",
+            "2000",
+            "--seed",
+            seed,
+            "--noise-std",
+            "0.01",
+            "--outlier-prob",
+            "0.03",
+            "--outlier-range",
+            "1,3",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let job = serde_json::json!({
+        "name": "small",
+        "data": {"path": "est.csv", "ts": 1e-3},
+        "validation": {"path": "val.csv"},
+        "grid": {"nb": [1, 3], "nf": [1, 4], "k": [0.1, 0.5, 1.5]},
+        "band_hz": [0, 200],
+        "start": start,
+        "output": out,
+    });
+    let p = dir.join(format!("{out}.json"));
+    std::fs::write(&p, serde_json::to_string_pretty(&job).unwrap()).unwrap();
+    p
+}
+
+fn run(job: &Path, threads: &str) -> Vec<CellRow> {
+    let o = oesweep(&["run", job.to_str().unwrap(), "--threads", threads, "--quiet"]);
+    assert!(o.status.success(), "{}\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    let out = job.parent().unwrap().join(job.file_stem().unwrap());
+    read_cells(&out.join("cells.parquet")).unwrap()
+}
+
+/// Everything but the wall-clock column.
+fn strip_seconds(mut rows: Vec<CellRow>) -> Vec<CellRow> {
+    for r in &mut rows {
+        r.seconds = 0.0;
+    }
+    rows
+}
+
+#[test]
+fn small_sweep_writes_one_row_per_cell_and_picks_true_orders() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = setup(dir.path(), "out", "ls");
+    let o = oesweep(&["plan", job.to_str().unwrap()]);
+    let plan = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && plan.contains("36 Huber cells") && plan.contains("12 least-squares"), "{plan}");
+    assert!(!dir.path().join("out").exists(), "plan must not write anything");
+
+    let rows = run(&job, "2");
+    let huber: Vec<&CellRow> = rows.iter().filter(|r| r.method == Method::Huber).collect();
+    assert_eq!(huber.len(), 3 * 4 * 3);
+    assert_eq!(rows.iter().filter(|r| r.method == Method::Ls).count(), 12);
+    let mut keys: Vec<(u32, u32, u32)> = huber.iter().map(|r| (r.nb, r.nf, r.k_index.unwrap())).collect();
+    keys.sort();
+    keys.dedup();
+    assert_eq!(keys.len(), 36, "one row per cell");
+    for r in &huber {
+        assert!(r.ok(), "{r:?}");
+        assert!(r.criterion.is_some() && r.l1c.is_some() && r.fit_val.is_some() && r.fit_band.is_some());
+        assert_eq!(r.b.len(), r.nb as usize);
+        assert_eq!(r.f.len(), r.nf as usize);
+        assert!((r.gamma.unwrap() - r.k.unwrap() * r.sigma.unwrap()).abs() < 1e-12);
+    }
+
+    let out = dir.path().join("out");
+    let sel: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("selection.json")).unwrap()).unwrap();
+    for pick in ["m1", "m2"] {
+        assert_eq!((sel[pick]["nb"].as_u64(), sel[pick]["nf"].as_u64()), (Some(2), Some(2)), "{pick}: {sel}");
+        assert!(!sel[pick]["candidates"].as_array().unwrap().is_empty());
+    }
+    let job_as_run: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("job.json")).unwrap()).unwrap();
+    assert_eq!(job_as_run["validation"]["y"], "y0");
+    assert_eq!(job_as_run["grid"]["k"], serde_json::json!([0.1, 0.5, 1.5]));
+}
+
+#[test]
+fn thread_count_does_not_change_the_table() {
+    let dir = tempfile::tempdir().unwrap();
+    for start in ["ls", "best"] {
+        let job = setup(dir.path(), &format!("out_{start}"), start);
+        let one = strip_seconds(run(&job, "1"));
+        let two = strip_seconds(run(&job, "2"));
+        assert_eq!(one, two, "start = {start}");
+    }
+}
