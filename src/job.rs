@@ -199,8 +199,21 @@ pub fn k_values(k: &KGrid) -> Vec<f64> {
     }
 }
 
+/// `p` relative to `base`, with `a/../` folded lexically so messages show readable paths.
 fn resolve(base: &Path, p: &Path) -> PathBuf {
-    if p.is_absolute() { p.to_path_buf() } else { base.join(p) }
+    use std::path::Component;
+    let joined = if p.is_absolute() { p.to_path_buf() } else { base.join(p) };
+    let mut out = PathBuf::new();
+    for c in joined.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir if matches!(out.components().next_back(), Some(Component::Normal(_))) => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    if out.as_os_str().is_empty() { PathBuf::from(".") } else { out }
 }
 
 /// Read and validate a job file. Does not touch the data files (see [`load_inputs`]).
@@ -212,7 +225,9 @@ pub fn load(path: &Path) -> Result<ValidJob> {
 
 fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     let bad = |field: &str, msg: String| Error::input(path, format!("field '{field}': {msg}"));
-    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    // Absolute base: job.json in the output folder must locate the data from anywhere.
+    let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let base = parent.canonicalize().unwrap_or_else(|_| parent.to_path_buf());
     if job.name.trim().is_empty() {
         return Err(bad("name", "must not be empty".into()));
     }
