@@ -36,6 +36,14 @@ pub enum Command {
     Plan(PlanArgs),
     /// Run a job: estimate every cell, write the result tables and the model picks.
     Run(RunArgs),
+    /// Write report.html with figures for a finished sweep's output folder.
+    Report(ReportArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ReportArgs {
+    /// Output folder of a finished `oesweep run`.
+    pub folder: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -54,6 +62,9 @@ pub struct RunArgs {
     /// No progress output.
     #[arg(long)]
     pub quiet: bool,
+    /// Also write the HTML report (see `oesweep report`).
+    #[arg(long)]
+    pub report: bool,
 }
 
 #[derive(Args, Debug)]
@@ -156,6 +167,11 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Simulate(a) => run_simulate(&a),
         Command::Plan(a) => run_plan(&a),
         Command::Run(a) => run_job(&a),
+        Command::Report(a) => {
+            let page = crate::report::write_report(&a.folder)?;
+            println!("wrote {}", page.display());
+            Ok(0)
+        }
     }
 }
 
@@ -466,5 +482,9 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         }
     }
     println!("results in {}", out.display());
+    if a.report {
+        let page = crate::report::write_report(&out)?;
+        println!("report in {}", page.display());
+    }
     Ok(if failed > 0 { 1 } else { 0 })
 }

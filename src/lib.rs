@@ -14,6 +14,7 @@ pub mod oe;
 pub mod plan;
 pub mod progress;
 pub mod reduce;
+pub mod report;
 pub mod simulate;
 pub mod spectral;
 pub mod sweep;
