@@ -57,6 +57,7 @@ impl Layout {
 }
 
 pub use crate::kernels::dot;
+use crate::kernels::{lagged_dots, rank1_upper};
 
 /// Reusable buffers for [`NormalEquations::build`].
 #[derive(Default, Debug)]
@@ -92,10 +93,22 @@ impl NormalEquations {
         self.psi.resize(d, 0.0);
         let inv_n = 1.0 / n as f64;
 
+        // g_c = sign_c sum_s s_c[s] r[s + lag_c]: consecutive lags of (xu, r) from d and of
+        // (xy, r) from 1, i.e. lagged dot products of a shifted r.
+        let (nb, dl) = (lay.nb, lay.delay);
+        if dl < n {
+            lagged_dots(&xu[..n - dl], &r[dl..], &mut g[..nb]);
+        } else {
+            g[..nb].fill(0.0);
+        }
+        if n > 1 {
+            lagged_dots(&xy[..n - 1], &r[1..], &mut g[nb..d]);
+        } else {
+            g[nb..d].fill(0.0);
+        }
         for (c, gc) in g[..d].iter_mut().enumerate() {
-            let (s, sign, lag) = lay.col(c);
-            let seq = if s == Seq::U { xu } else { xy };
-            *gc = if lag < n { sign * dot(&seq[..n - lag], &r[lag..]) * inv_n } else { 0.0 };
+            let sign = if c < nb { 1.0 } else { -1.0 };
+            *gc *= sign * inv_n;
         }
 
         self.rows.clear();
@@ -137,18 +150,17 @@ impl NormalEquations {
     fn gram(&mut self, lay: &Layout, xu: &[f64], xy: &[f64], h: &mut [f64]) {
         let n = xu.len();
         let d = lay.dim();
-        let corr = |a: &[f64], b: &[f64], lag: usize| if lag < n { dot(&a[..n - lag], &b[lag..]) } else { 0.0 };
         let (nb, nf, dl) = (lay.nb, lay.nf, lay.delay);
-        self.ruu.clear();
-        self.ruu.extend((0..nb).map(|l| corr(xu, xu, l)));
-        self.ryy.clear();
-        self.ryy.extend((0..nf).map(|l| corr(xy, xy, l)));
+        self.ruu.resize(nb, 0.0);
+        lagged_dots(xu, xu, &mut self.ruu);
+        self.ryy.resize(nf, 0.0);
+        lagged_dots(xy, xy, &mut self.ryy);
         // lag_u - lag_y ranges over [d - nf, d + nb - 2]; split by sign.
-        self.ruy.clear();
         if nf > 0 {
-            self.ruy.extend((0..(dl + nb).saturating_sub(1)).map(|l| corr(xu, xy, l)));
-            self.ryu.clear();
-            self.ryu.extend((0..=nf.saturating_sub(dl)).map(|l| corr(xy, xu, l)));
+            self.ruy.resize((dl + nb).saturating_sub(1), 0.0);
+            lagged_dots(xu, xy, &mut self.ruy);
+            self.ryu.resize(nf.saturating_sub(dl) + 1, 0.0);
+            lagged_dots(xy, xu, &mut self.ryu);
         }
         for c in 0..d {
             let (sc, gc, lc) = lay.col(c);
@@ -178,21 +190,6 @@ impl NormalEquations {
                 }
                 h[c * d + e] = gc * ge * (full - tail);
             }
-        }
-    }
-}
-
-/// `h += alpha * v v^T` on the upper triangle.
-#[inline]
-fn rank1_upper(h: &mut [f64], d: usize, v: &[f64], alpha: f64) {
-    for i in 0..d {
-        let a = alpha * v[i];
-        if a == 0.0 {
-            continue;
-        }
-        let row = &mut h[i * d + i..i * d + d];
-        for (hij, vj) in row.iter_mut().zip(&v[i..d]) {
-            *hij += a * vj;
         }
     }
 }
