@@ -127,9 +127,9 @@ fn huber_phase_n(c: &mut Criterion) {
 
 fn config() -> Criterion {
     // Fits take 5-150 ms: 10 samples over 3 s give medians stable to a few per cent while
-    // keeping the whole file near a minute on the 2-core machine. The groups sample flat (the
-    // same number of fits per sample) because criterion's linear ramp would need 55 fits per
-    // benchmark and overrun the budget on the slow cells.
+    // keeping the whole file under a minute on the 2-core machine. The groups sample flat (the
+    // same number of fits in every sample), as criterion advises for millisecond-scale
+    // routines: the linear ramp's regression only pays off when per-call overhead matters.
     Criterion::default()
         .sample_size(10)
         .warm_up_time(Duration::from_secs(1))

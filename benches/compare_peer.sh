@@ -5,7 +5,7 @@
 #   bash benches/compare_peer.sh --cells 9,12 12,12 --k 0.0625 --repeat 3
 #
 # Options are those of benches/compare_peer.py (--cells NB,NF ..., --k K (repeatable),
-# --repeat R, --raw FILE, --est/--val to use other records). Environment: CARGO_TARGET_DIR
+# --repeat R (default 3, median time), --raw FILE, --est/--val to use other records). Environment: CARGO_TARGET_DIR
 # (default $HOME/.cache/oesweep-target, where the project keeps its build), PEER (path of
 # peer.py, default ../shared/peer/peer.py next to the clone).
 #

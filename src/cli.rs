@@ -3,6 +3,7 @@
 //! Each command validates its inputs first (a bad input is one [`Error`] naming the file and
 //! what is wrong; the binary exits 2), then calls the library.
 
+use crate::checkpoint::{self, Manifest, StopOnSignal, Writer};
 use crate::data::{self, Record};
 use crate::error::{Error, Result};
 use crate::estimate::{self, HuberFit, HuberHessian, Judge, LsFit, Problem, SolverOptions, Workspace};
@@ -15,9 +16,10 @@ use crate::simulate;
 use crate::spectral::SpectralEstimate;
 use crate::spectral::{self, WelchOptions};
 use crate::sweep::{self, Context};
+use crate::table::{CellRow, Method};
 use clap::{Args, Parser, Subcommand};
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 #[derive(Parser, Debug)]
 #[command(name = "oesweep", version, about = "Robust (Huber) output-error identification and model-order search")]
@@ -65,6 +67,13 @@ pub struct RunArgs {
     /// Also write the HTML report (see `oesweep report`).
     #[arg(long)]
     pub report: bool,
+    /// Start over: delete the checkpoint of an interrupted run in the output folder instead of
+    /// resuming from it (needed when the job or its data changed since).
+    #[arg(long)]
+    pub force: bool,
+    /// Save finished cells to the checkpoint at least this often (and every 500 cells).
+    #[arg(long, value_name = "SECONDS", default_value_t = checkpoint::BATCH_SECONDS)]
+    pub checkpoint_every: f64,
 }
 
 #[derive(Args, Debug)]
@@ -269,7 +278,7 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
     let mut ws = Workspace::new();
     let t0 = Instant::now();
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
-    let huber = estimate::fit_huber(&prob, ls.sigma, a.k, &ls.theta(), &judge, &opts, &mut ws);
+    let (huber, _) = estimate::fit_huber_multi(&prob, &ls, a.k, &judge, &opts, &mut ws);
     let seconds = t0.elapsed().as_secs_f64();
     let report = FitReport {
         data: a.data.clone(),
@@ -434,19 +443,85 @@ struct JobAsRun<'a> {
     job: &'a job::Job,
 }
 
+/// `oesweep run`: validate everything (job, data, an existing checkpoint) before writing
+/// anything; resume from `<output>/parts` when it holds an interrupted run of this job (see
+/// [`checkpoint`]); run the remaining cells while the checkpoint writer saves them; on a signal
+/// stop, save and return 130; otherwise merge, reduce, write the results and delete the parts.
 fn run_job(a: &RunArgs) -> Result<u8> {
+    if !(a.checkpoint_every.is_finite() && a.checkpoint_every > 0.0) {
+        return Err(Error::Invalid(format!(
+            "--checkpoint-every must be a positive number of seconds, got {}",
+            a.checkpoint_every
+        )));
+    }
     let p = prepare(&a.job)?;
     let out = p.job.output().to_path_buf();
+    let parts = out.join(checkpoint::PARTS_DIR);
+    let manifest = Manifest::of_job(&p.job)?;
+    // A checkpoint of another job is bad input too: refused before anything is written.
+    let existing =
+        if a.force { checkpoint::Existing::default() } else { checkpoint::inspect(&parts, &manifest, &p.plan)? };
+
     std::fs::create_dir_all(&out).map_err(|e| Error::output(&out, format!("cannot create output folder: {e}")))?;
+    checkpoint::open(&out, &manifest, a.force)?;
+    let (pairs, cells) = (p.plan.pairs.len(), p.plan.n_cells());
+    let resumed_huber = existing.huber_rows();
+    let resumed_rows = existing.rows.len();
+    if resumed_rows > 0 && !a.quiet {
+        eprintln!(
+            "resuming from {} ({} parts): {} of {cells} cells and {} of {pairs} least-squares fits already done",
+            parts.display(),
+            existing.parts,
+            resumed_huber,
+            resumed_rows - resumed_huber,
+        );
+    }
+    if existing.duplicates > 0 {
+        eprintln!(
+            "warning: {}: {} duplicate rows ignored (the first of each cell is kept)",
+            parts.display(),
+            existing.duplicates
+        );
+    }
     let ctx = Context {
         est: &p.inputs.est,
         val: p.inputs.val.as_ref(),
         band: p.spectral.as_ref().map(|(s, b)| (s, &b[..])),
         solver: p.job.job.solver.clone(),
     };
-    let progress = Progress::new(p.plan.n_cells(), a.quiet);
-    let outcome = sweep::run(&p.plan, &ctx, a.threads, &progress);
+    let writer = Writer::start(
+        parts.clone(),
+        existing.next_part,
+        Duration::from_secs_f64(a.checkpoint_every),
+        checkpoint::BATCH_ROWS,
+    );
+    let progress = Progress::new(cells - resumed_huber, a.quiet);
+    let outcome = {
+        let signals = StopOnSignal::install();
+        let tx = writer.sender();
+        // A send fails only if the writer thread is gone; the row is still in the outcome.
+        let on_row = |row: &CellRow| {
+            let _ = tx.send(row.clone());
+        };
+        let control = sweep::Control { done: existing.rows, on_row: &on_row, stop: signals.flag() };
+        sweep::run(&p.plan, &ctx, a.threads, &progress, control)
+    };
     progress.finish();
+    let saved = writer.finish();
+    if let Some(e) = &saved.error {
+        eprintln!("warning: {} finished rows could not be saved to the checkpoint: {e}", saved.unsaved);
+    }
+    if outcome.interrupted {
+        let done_huber = outcome.rows.iter().filter(|r| r.method == Method::Huber).count();
+        eprintln!(
+            "interrupted: {} of {cells} cells finished ({} in this run); they are saved in {}",
+            done_huber,
+            outcome.computed,
+            parts.display()
+        );
+        eprintln!("to resume, run `oesweep run {}` again (with --force to start over instead)", a.job.display());
+        return Ok(130);
+    }
 
     let basis = reduce::choose_basis(p.inputs.val.is_some(), p.spectral.is_some());
     let sel_opts = ReduceOptions {
@@ -462,10 +537,17 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job: &p.job.job },
     )?;
 
-    let cells = p.plan.n_cells();
     let failed = outcome.failed_cells();
-    println!("{}: {} cells ({} failed) + {} least-squares fits", p.job.job.name, cells, failed, p.plan.pairs.len());
-    println!("wall time {:.2} s, {:.1} cells/s", outcome.seconds, cells as f64 / outcome.seconds.max(1e-9));
+    println!("{}: {} cells ({} failed) + {} least-squares fits", p.job.job.name, cells, failed, pairs);
+    if resumed_rows > 0 {
+        println!(
+            "{} cells and {} least-squares fits resumed from the checkpoint, {} cells computed in this run",
+            outcome.resumed,
+            resumed_rows - outcome.resumed,
+            outcome.computed
+        );
+    }
+    println!("wall time {:.2} s, {:.1} cells/s", outcome.seconds, outcome.computed as f64 / outcome.seconds.max(1e-9));
     for (label, pick) in [("M1 (W minima)  ", &selection.m1), ("M2 (L1C minima)", &selection.m2)] {
         match pick {
             Some(m) => println!(
@@ -482,6 +564,11 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         }
     }
     println!("results in {}", out.display());
+    // cells.parquet is complete: the checkpoint has served. If this fails, a rerun finds every
+    // cell done and merges again.
+    if let Err(e) = checkpoint::remove(&out) {
+        eprintln!("warning: {e}");
+    }
     if a.report {
         let page = crate::report::write_report(&out)?;
         println!("report in {}", page.display());

@@ -50,7 +50,7 @@ impl Record {
 /// Column names of a CSV file (its header row) or of a Parquet file (its schema), in file order.
 pub fn column_names(path: &Path) -> Result<Vec<String>> {
     if is_parquet(path) {
-        parquet::column_names(path)
+        parquet::guarded(path, || parquet::column_names(path))
     } else {
         let text = read_text(path)?;
         let header = csv_header(path, &text, &[])?;
@@ -63,7 +63,7 @@ pub fn column_names(path: &Path) -> Result<Vec<String>> {
 /// All checks of [`read_columns`] apply; in addition the two columns must differ.
 pub fn read_record(path: &Path, u_col: &str, y_col: &str) -> Result<Record> {
     if u_col == y_col {
-        return Err(Error::input(path, format!("the input and the output column are both '{u_col}'")));
+        return Err(input_error(path, format!("the input and the output column are both '{u_col}'")));
     }
     let mut cols = read_columns(path, &[u_col, y_col])?;
     let y = cols.pop().expect("two columns were read");
@@ -78,7 +78,7 @@ pub fn read_record(path: &Path, u_col: &str, y_col: &str) -> Result<Record> {
 /// has no data row, or any requested value is not a finite number.
 pub fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>> {
     if is_parquet(path) {
-        parquet::read_columns(path, names)
+        parquet::guarded(path, || parquet::read_columns(path, names))
     } else {
         let text = read_text(path)?;
         parse_csv(path, &text, names)
@@ -94,7 +94,28 @@ pub fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>> {
 /// L2 phase are clearly overdetermined. This is a floor against nonsense, not a guarantee of a
 /// good fit: the paper uses N = 5000 for 24 parameters.
 pub fn min_samples(nb: usize, nf: usize, delay: usize) -> usize {
-    (delay + nb.max(nf) + 4 * (nb + nf)).max(20)
+    // Saturating: a job may ask for any delay up to usize::MAX, and a wrapped sum would
+    // let it through.
+    delay.saturating_add(nb.max(nf)).saturating_add(4usize.saturating_mul(nb.saturating_add(nf))).max(20)
+}
+
+/// An input error whose message is kept on one line: it quotes names and values taken from
+/// job and data files (and messages of the Parquet reader), any of which may hold a line break.
+fn input_error(path: &Path, msg: impl Into<String>) -> Error {
+    Error::input(path, one_line(&msg.into()))
+}
+
+/// `s` with control characters escaped (`\n`, `\u{1b}`): names taken from job or data files
+/// are quoted in messages, and a message must stay on one line.
+pub(crate) fn one_line(s: &str) -> String {
+    s.chars().fold(String::with_capacity(s.len()), |mut out, c| {
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+        out
+    })
 }
 
 /// Checks that `rec` can identify OE(nb, nf) with delay `delay`: at least
@@ -105,19 +126,19 @@ pub fn check_for_model(rec: &Record, nb: usize, nf: usize, delay: usize) -> Resu
     let n = rec.len();
     let need = min_samples(nb, nf, delay);
     if n < need {
-        return Err(Error::input(
+        return Err(input_error(
             &rec.path,
             format!("{n} samples are too few for OE(nb={nb}, nf={nf}) with delay {delay}: need at least {need}"),
         ));
     }
     if let Some(v) = constant_value(&rec.u) {
-        return Err(Error::input(
+        return Err(input_error(
             &rec.path,
             format!("input column '{}' is constant (value {v}): it does not excite the system", rec.u_name),
         ));
     }
     if let Some(v) = constant_value(&rec.y) {
-        return Err(Error::input(
+        return Err(input_error(
             &rec.path,
             format!("output column '{}' is constant (value {v}): there is nothing to fit", rec.y_name),
         ));
@@ -150,13 +171,13 @@ fn is_parquet(path: &Path) -> bool {
 /// The whole file as text. Reading it at once and splitting in memory is what makes a
 /// 20000-line file take a few milliseconds.
 fn read_text(path: &Path) -> Result<String> {
-    let bytes = fs::read(path).map_err(|e| Error::input(path, format!("cannot open file: {e}")))?;
+    let bytes = fs::read(path).map_err(|e| input_error(path, format!("cannot open file: {e}")))?;
     match String::from_utf8(bytes) {
         Ok(s) => Ok(s),
         Err(e) => {
             let good = e.utf8_error().valid_up_to();
             let line = 1 + e.as_bytes()[..good].iter().filter(|&&b| b == b'\n').count();
-            Err(Error::input(path, format!("line {line}: not valid UTF-8 text (is this a CSV file?)")))
+            Err(input_error(path, format!("line {line}: not valid UTF-8 text (is this a CSV file?)")))
         }
     }
 }
@@ -172,15 +193,15 @@ fn list_columns(all: &[impl AsRef<str>]) -> String {
 }
 
 fn missing_column(path: &Path, name: &str, all: &[impl AsRef<str>]) -> Error {
-    Error::input(path, format!("no column '{name}' (columns: {})", list_columns(all)))
+    input_error(path, format!("no column '{name}' (columns: {})", list_columns(all)))
 }
 
 /// Validates one parsed value; `place` is "line 7" or "row 7".
 fn check_finite(path: &Path, place: &str, col: &str, v: f64) -> Result<f64> {
     if v.is_nan() {
-        Err(Error::input(path, format!("{place}, column '{col}': NaN is not allowed")))
+        Err(input_error(path, format!("{place}, column '{col}': NaN is not allowed")))
     } else if v.is_infinite() {
-        Err(Error::input(path, format!("{place}, column '{col}': infinite value")))
+        Err(input_error(path, format!("{place}, column '{col}': infinite value")))
     } else {
         Ok(v)
     }
@@ -202,7 +223,7 @@ fn csv_header<'a>(path: &Path, text: &'a str, wanted: &[&str]) -> Result<CsvHead
         } else {
             format!("expected a header row with columns {}", wanted.join(", "))
         };
-        return Err(Error::input(path, format!("file is empty ({expected})")));
+        return Err(input_error(path, format!("file is empty ({expected})")));
     }
     let (line, body_start) = match text_nobom.find('\n') {
         Some(i) => (&text_nobom[..i], bom + i + 1),
@@ -213,10 +234,10 @@ fn csv_header<'a>(path: &Path, text: &'a str, wanted: &[&str]) -> Result<CsvHead
     for (i, name) in names.iter().enumerate() {
         if name.is_empty() {
             let hint = if line.trim().is_empty() { " (the header row is blank)" } else { "" };
-            return Err(Error::input(path, format!("line 1: column {} has an empty name{hint}", i + 1)));
+            return Err(input_error(path, format!("line 1: column {} has an empty name{hint}", i + 1)));
         }
         if names[..i].contains(name) {
-            return Err(Error::input(path, format!("column '{name}' appears twice in the header")));
+            return Err(input_error(path, format!("column '{name}' appears twice in the header")));
         }
     }
     Ok(CsvHeader { names, body_start })
@@ -263,11 +284,11 @@ fn parse_csv(path: &Path, text: &str, wanted: &[&str]) -> Result<Vec<Vec<f64>>> 
             if lines.peek().is_none() {
                 break;
             }
-            return Err(Error::input(path, format!("line {lineno}: empty line")));
+            return Err(input_error(path, format!("line {lineno}: empty line")));
         }
         let fields = 1 + line.bytes().filter(|&b| b == b',').count();
         if fields != width {
-            return Err(Error::input(
+            return Err(input_error(
                 path,
                 format!(
                     "line {lineno}: {fields} field{}, but the header has {width}",
@@ -288,7 +309,7 @@ fn parse_csv(path: &Path, text: &str, wanted: &[&str]) -> Result<Vec<Vec<f64>>> 
         rows += 1;
     }
     if rows == 0 {
-        return Err(Error::input(path, "no data rows"));
+        return Err(input_error(path, "no data rows"));
     }
     Ok(out)
 }
@@ -296,11 +317,11 @@ fn parse_csv(path: &Path, text: &str, wanted: &[&str]) -> Result<Vec<Vec<f64>>> 
 fn parse_field(path: &Path, lineno: usize, col: &str, field: &str) -> Result<f64> {
     let s = field.trim();
     if s.is_empty() {
-        return Err(Error::input(path, format!("line {lineno}, column '{col}': empty value")));
+        return Err(input_error(path, format!("line {lineno}, column '{col}': empty value")));
     }
     match s.parse::<f64>() {
         Ok(v) => check_finite(path, &format!("line {lineno}"), col, v),
-        Err(_) => Err(Error::input(path, format!("line {lineno}, column '{col}': '{s}' is not a number"))),
+        Err(_) => Err(input_error(path, format!("line {lineno}, column '{col}': '{s}' is not a number"))),
     }
 }
 
@@ -308,20 +329,55 @@ fn parse_field(path: &Path, lineno: usize, col: &str, field: &str) -> Result<f64
 /// sticks to the eager `ParquetReader` API).
 mod parquet {
     use std::fs::File;
+    use std::panic::{self, AssertUnwindSafe};
     use std::path::Path;
+    use std::sync::Once;
+    use std::sync::atomic::{AtomicUsize, Ordering};
 
     use polars::prelude::{DataType, ParquetReader, SerReader};
 
-    use super::{check_finite, missing_column};
-    use crate::error::{Error, Result};
+    use super::{check_finite, input_error, missing_column};
+    use crate::error::Result;
+
+    /// Panics of the reader while `guarded` runs are caught and not printed.
+    static QUIET: AtomicUsize = AtomicUsize::new(0);
+    static HOOK: Once = Once::new();
+
+    /// Runs `read` and turns a panic into an input error. The Parquet decoder trusts the
+    /// file's metadata and panics on some corrupt files (an `unwrap` on a missing statistic,
+    /// found by mutating a valid file), and a bad file must be exit 2 and one line, not a
+    /// panic with a backtrace. The panic hook is wrapped once so it stays silent while any
+    /// guarded read runs (any thread: the decoder may panic on a pool thread); other panics
+    /// are still reported by the previous hook.
+    pub(super) fn guarded<T>(path: &Path, read: impl FnOnce() -> Result<T>) -> Result<T> {
+        HOOK.call_once(|| {
+            let previous = panic::take_hook();
+            panic::set_hook(Box::new(move |info| {
+                if QUIET.load(Ordering::SeqCst) == 0 {
+                    previous(info);
+                }
+            }));
+        });
+        QUIET.fetch_add(1, Ordering::SeqCst);
+        let outcome = panic::catch_unwind(AssertUnwindSafe(read));
+        QUIET.fetch_sub(1, Ordering::SeqCst);
+        outcome.unwrap_or_else(|payload| {
+            let what = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown failure".into());
+            Err(input_error(path, format!("not a readable Parquet file: the reader failed ({what})")))
+        })
+    }
 
     fn open(path: &Path) -> Result<ParquetReader<File>> {
-        let file = File::open(path).map_err(|e| Error::input(path, format!("cannot open file: {e}")))?;
+        let file = File::open(path).map_err(|e| input_error(path, format!("cannot open file: {e}")))?;
         Ok(ParquetReader::new(file))
     }
 
     fn schema_names(path: &Path, reader: &mut ParquetReader<File>) -> Result<Vec<String>> {
-        let schema = reader.schema().map_err(|e| Error::input(path, format!("not a readable Parquet file: {e}")))?;
+        let schema = reader.schema().map_err(|e| input_error(path, format!("not a readable Parquet file: {e}")))?;
         Ok(schema.iter_names().map(|n| n.to_string()).collect())
     }
 
@@ -349,28 +405,40 @@ mod parquet {
         let df = reader
             .with_columns(Some(unique))
             .finish()
-            .map_err(|e| Error::input(path, format!("cannot read Parquet data: {e}")))?;
+            .map_err(|e| input_error(path, format!("cannot read Parquet data: {e}")))?;
         if df.height() == 0 {
-            return Err(Error::input(path, "no data rows"));
+            return Err(input_error(path, "no data rows"));
         }
         let mut out = Vec::with_capacity(names.len());
         for &name in names {
-            let col = df.column(name).map_err(|e| Error::input(path, format!("cannot read column '{name}': {e}")))?;
+            let col = df.column(name).map_err(|e| input_error(path, format!("cannot read column '{name}': {e}")))?;
             let dtype = col.dtype();
             if !dtype.is_primitive_numeric() {
-                return Err(Error::input(path, format!("column '{name}' has type {dtype:?}, expected numbers")));
+                return Err(input_error(path, format!("column '{name}' has type {dtype:?}, expected numbers")));
             }
-            let cast = col.cast(&DataType::Float64).map_err(|e| Error::input(path, format!("column '{name}': {e}")))?;
-            let ca = cast.f64().map_err(|e| Error::input(path, format!("column '{name}': {e}")))?;
+            let cast = col.cast(&DataType::Float64).map_err(|e| input_error(path, format!("column '{name}': {e}")))?;
+            let ca = cast.f64().map_err(|e| input_error(path, format!("column '{name}': {e}")))?;
             let mut v = Vec::with_capacity(ca.len());
             for (i, x) in ca.iter().enumerate() {
                 let row = i + 1;
                 match x {
                     Some(x) => v.push(check_finite(path, &format!("row {row}"), name, x)?),
                     None => {
-                        return Err(Error::input(path, format!("row {row}, column '{name}': missing value (null)")));
+                        return Err(input_error(path, format!("row {row}, column '{name}': missing value (null)")));
                     }
                 }
+            }
+            // A corrupt page header can make the decoder return fewer values than the file's
+            // row count (found by fuzzing), which would pair u and y samples wrongly.
+            if v.len() != df.height() {
+                return Err(input_error(
+                    path,
+                    format!(
+                        "column '{name}' has {} values but the file has {} rows (corrupt file?)",
+                        v.len(),
+                        df.height()
+                    ),
+                ));
             }
             out.push(v);
         }

@@ -219,12 +219,16 @@ fn resolve(base: &Path, p: &Path) -> PathBuf {
 /// Read and validate a job file. Does not touch the data files (see [`load_inputs`]).
 pub fn load(path: &Path) -> Result<ValidJob> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read job file: {e}")))?;
-    let job: Job = serde_json::from_str(&text).map_err(|e| Error::input(path, format!("invalid job: {e}")))?;
+    // serde quotes unknown keys and variants verbatim: escape control characters so the
+    // message stays the one line the CLI promises.
+    let job: Job = serde_json::from_str(&text)
+        .map_err(|e| Error::input(path, format!("invalid job: {}", data::one_line(&e.to_string()))))?;
     validate(path, job)
 }
 
 fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
-    let bad = |field: &str, msg: String| Error::input(path, format!("field '{field}': {msg}"));
+    // Messages quote paths and values from the job, which may hold control characters.
+    let bad = |field: &str, msg: String| Error::input(path, data::one_line(&format!("field '{field}': {msg}")));
     // Absolute base: job.json in the output folder must locate the data from anywhere.
     let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let base = parent.canonicalize().unwrap_or_else(|_| parent.to_path_buf());
@@ -275,6 +279,16 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
             return Err(bad("grid.k", format!("from == to == {} with count {}: the range is empty", r.from, r.count)));
         }
     }
+    // The cell cap is checked before the k grid is expanded: a typo such as a count of 1e15
+    // must be an error, not an allocation that aborts the process.
+    let n_k = match &job.grid.k {
+        KGrid::List(v) => v.len(),
+        KGrid::Range(r) => r.count,
+    };
+    let cells = ((b1 - b0 + 1) * (f1 - f0 + 1)) as u128 * n_k as u128;
+    if cells > MAX_CELLS as u128 {
+        return Err(bad("grid", format!("{cells} cells is above the limit of {MAX_CELLS}")));
+    }
     let ks = k_values(&job.grid.k);
     if ks.is_empty() {
         return Err(bad("grid.k", "the list of k values is empty".into()));
@@ -282,17 +296,15 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     if let Some(k) = ks.iter().find(|k| !(k.is_finite() && **k > 0.0)) {
         return Err(bad("grid.k", format!("k must be positive, got {k}")));
     }
-    for w in ks.windows(2) {
-        if w[0] == w[1] {
-            return Err(bad("grid.k", format!("k = {} appears twice", w[0])));
-        }
+    // Duplicates anywhere in the list (not only neighbours) would give two cells with the
+    // same (nB, nF, k) and two identical rows in the table.
+    let mut sorted = ks.clone();
+    sorted.sort_by(f64::total_cmp);
+    if let Some(w) = sorted.windows(2).find(|w| w[0] == w[1]) {
+        return Err(bad("grid.k", format!("k = {} appears twice", w[0])));
     }
     let nb: Vec<usize> = (b0..=b1).collect();
     let nf: Vec<usize> = (f0..=f1).collect();
-    let cells = nb.len() * nf.len() * ks.len();
-    if cells > MAX_CELLS {
-        return Err(bad("grid", format!("{cells} cells is above the limit of {MAX_CELLS}")));
-    }
     if let Some([lo, hi]) = job.band_hz {
         let nyq = 0.5 / job.data.ts.unwrap();
         if !(lo >= 0.0 && hi > lo && hi <= nyq * (1.0 + 1e-12)) {
@@ -316,11 +328,58 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
         return Err(bad("selection.fit_tolerance", format!("must be >= 0, got {}", sel.fit_tolerance)));
     }
     job.output = resolve(&base, &job.output);
-    if job.output.is_file() {
-        return Err(bad("output", format!("{} is a file, not a folder", job.output.display())));
-    }
+    check_output_folder(&job.output).map_err(|msg| bad("output", msg))?;
     job.grid.k = KGrid::List(ks.clone());
     Ok(ValidJob { file: path.to_path_buf(), job, nb, nf, ks })
+}
+
+/// Checks, without leaving a trace, that `out` is a folder `run` will be able to create or
+/// write into: a typo in `output` must fail in `plan`, before a night of estimation.
+///
+/// The nearest existing ancestor (the folder itself when it exists) must be a folder in which
+/// we can create an entry. That is tested by creating and at once removing a uniquely named
+/// empty probe folder, not with `access(W_OK)`: the permission bits are no answer for root
+/// (who may write almost anywhere, yet not under `/proc`), nor for read-only mounts, ACLs or
+/// full quotas on some file systems, and `libc` is not a dependency.
+fn check_output_folder(out: &Path) -> std::result::Result<(), String> {
+    use std::io::ErrorKind;
+    let mut existing = None;
+    for a in out.ancestors() {
+        match std::fs::metadata(a) {
+            Ok(m) => {
+                existing = Some((a, m));
+                break;
+            }
+            // NotADirectory: a component further up is a file; the loop reaches it.
+            Err(e) if matches!(e.kind(), ErrorKind::NotFound | ErrorKind::NotADirectory) => {}
+            Err(e) => return Err(format!("cannot access {}: {e}", a.display())),
+        }
+    }
+    let Some((dir, meta)) = existing else {
+        return Err(format!("{}: no part of this path exists", out.display()));
+    };
+    if !meta.is_dir() {
+        return Err(if dir == out {
+            format!("{} is a file, not a folder", out.display())
+        } else {
+            format!("cannot create {}: {} is a file, not a folder", out.display(), dir.display())
+        });
+    }
+    static PROBES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+    let probe = dir.join(format!(
+        ".oesweep-probe-{}-{nanos}-{}",
+        std::process::id(),
+        PROBES.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+    ));
+    match std::fs::create_dir(&probe) {
+        Ok(()) => {
+            // A probe that cannot be removed again would be a trace; say so rather than hide it.
+            std::fs::remove_dir(&probe).map_err(|e| format!("cannot remove the probe folder {}: {e}", probe.display()))
+        }
+        Err(e) if dir == out => Err(format!("cannot write into {} ({e})", out.display())),
+        Err(e) => Err(format!("cannot create {}: {} does not accept new folders ({e})", out.display(), dir.display())),
+    }
 }
 
 /// The records a job names, read and checked.

@@ -3,6 +3,7 @@
 //! The numerical specification is `../shared/METHOD.md`; module docs cite its sections.
 //! Data flows one way: data -> estimate (per cell) -> (sweep -> reduce -> export).
 
+pub mod checkpoint;
 pub mod cli;
 pub mod data;
 pub mod error;

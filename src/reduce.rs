@@ -231,7 +231,7 @@ fn local_minima(values: &[f64], tolerance: Tolerance) -> Vec<usize> {
         .collect()
 }
 
-/// Which curve a pick comes from; used for the candidate values and the rule sentence.
+/// Which curve a pick comes from (for the rule sentence).
 #[derive(Clone, Copy)]
 enum Curve {
     W,
@@ -324,7 +324,7 @@ fn pick(minima: &[&CellRow], opts: &ReduceOptions, curve: Curve) -> Option<Pick>
         )
     };
     let rule = format!(
-        "OE({},{}) at k = {} (k index {}) with {basis} {:.3}%: chosen among {} local minima over nF of {curve_name} \
+        "OE({},{}) at k = {} (k index {}) with {basis} {:.3}%: chosen among {} local {} over nF of {curve_name} \
          (one curve per nB and k, {tolerance}){skipped}; the best {basis} is {best:.3}%, ties are \
          within {} points of it; this model is {how}",
         model.nb,
@@ -333,6 +333,7 @@ fn pick(minima: &[&CellRow], opts: &ReduceOptions, curve: Curve) -> Option<Pick>
         model.k_index,
         model.score,
         candidates.len(),
+        if candidates.len() == 1 { "minimum" } else { "minima" },
         opts.fit_tolerance,
     );
     Some(Pick { model, rule, candidates })
@@ -417,6 +418,10 @@ mod tests {
         let mut nan = row(3, 6, 0, 1.0, 0.5, 99.0);
         nan.criterion = Some(f64::NAN);
         rows.push(nan);
+        // Nor a malformed ok row without gamma.
+        let mut no_gamma = row(3, 3, 0, 0.5, 0.5, 99.0);
+        no_gamma.gamma = None;
+        rows.push(no_gamma);
         // Nor does a least-squares row, however small its criterion.
         let mut ls = row(3, 3, 0, 0.1, 0.5, 99.0);
         ls.method = Method::Ls;
@@ -425,7 +430,7 @@ mod tests {
         rows.push(CellRow::failed(Method::Ls, 3, 7, 1, None, "ls failed".into()));
         assert_eq!(minima_nf(&rows), vec![4]);
         let sel = select(&rows, &ReduceOptions::new(FitBasis::Validation));
-        assert_eq!((sel.cells, sel.failed), (5, 1));
+        assert_eq!((sel.cells, sel.failed), (6, 1));
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! Running a plan: rayon workers estimate the cells; the only module that knows about threads.
+//! Running a plan: rayon workers estimate the cells; the module that knows about the worker pool.
 //!
 //! Two stages. (1) The least-squares phase (initial guess, L2 fit, sigma) of every order pair,
 //! in parallel over pairs. (2) The Huber cells: with the `ls` start every cell is independent
@@ -7,16 +7,28 @@
 //! sequential and deterministic, so the table does not depend on the thread count. One
 //! [`Workspace`] per worker (`map_init`). A panic inside a fit is caught and becomes a failed
 //! row; the sweep goes on.
+//!
+//! Resuming ([`Control`]): rows finished by an earlier run of the same job are not computed
+//! again. A finished `ls` row *is* the pair's least-squares fit for the Huber phase: sigma and
+//! theta_LS = b ++ f are read from the row, and a pair fitted in this run goes through the same
+//! row-based path, so a resumed cell starts from the same bits as in an uninterrupted run. A
+//! continuation chain walks over its finished cells taking each one's (b, f) as the next start,
+//! exactly as the run that computed them did, and continues from the last one. Every row
+//! finished in this run is handed to [`Control::on_row`] (the checkpoint writer) at once, and
+//! the workers look at [`Control::stop`] before each cell, so an interrupt stops handing out
+//! work while running cells finish.
 
 use crate::data::Record;
-use crate::estimate::{self, Judge, LsFit, Problem, SolverOptions, Workspace};
+use crate::estimate::{self, Judge, Problem, SolverOptions, Workspace};
 use crate::job::StartStrategy;
 use crate::plan::{Cell, Plan};
 use crate::progress::Progress;
 use crate::spectral::SpectralEstimate;
 use crate::table::{CellRow, Method};
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Everything a cell needs besides its orders and k.
@@ -43,10 +55,53 @@ fn panic_message(e: Box<dyn std::any::Any + Send>) -> String {
     }
 }
 
+/// Identity of a row in a table: (is a Huber row, nb, nf, k_index). A complete table has
+/// exactly one row per key of its plan.
+pub type RowKey = (bool, u32, u32, Option<u32>);
+
+pub fn row_key(r: &CellRow) -> RowKey {
+    (r.method == Method::Huber, r.nb, r.nf, r.k_index)
+}
+
+/// Sort rows as in `cells.parquet`: `ls` rows first, then by nb, nf, k_index.
+pub fn sort_rows(rows: &mut [CellRow]) {
+    rows.sort_by_key(row_key);
+}
+
+/// How a sweep continues an earlier run and reports to a checkpoint.
+pub struct Control<'a> {
+    /// Rows finished by an earlier run of the same job (one per key; rows of keys seen before
+    /// are ignored). Their cells are not computed again and they are part of the outcome.
+    pub done: Vec<CellRow>,
+    /// Called from the worker threads with every row finished in this run, as soon as it is.
+    pub on_row: &'a (dyn Fn(&CellRow) + Sync),
+    /// Once true, no further cell is started; running cells finish.
+    pub stop: &'a AtomicBool,
+}
+
+static NEVER: AtomicBool = AtomicBool::new(false);
+
+fn ignore(_: &CellRow) {}
+
+impl Control<'static> {
+    /// A run from scratch that is never stopped and reports nowhere.
+    pub fn none() -> Self {
+        Control { done: Vec::new(), on_row: &ignore, stop: &NEVER }
+    }
+}
+
 /// Result of a sweep: rows sorted by (method, nb, nf, k_index), `ls` rows first.
 pub struct Outcome {
+    /// Rows of earlier runs and of this one.
     pub rows: Vec<CellRow>,
+    /// Wall time of this run.
     pub seconds: f64,
+    /// Huber cells taken from earlier runs.
+    pub resumed: usize,
+    /// Huber cells computed in this run.
+    pub computed: usize,
+    /// True when the sweep stopped before every cell had a row.
+    pub interrupted: bool,
 }
 
 impl Outcome {
@@ -55,37 +110,97 @@ impl Outcome {
     }
 }
 
-/// Run every cell of `plan` on `threads` workers (0 = all cores).
-pub fn run(plan: &Plan, ctx: &Context, threads: usize, progress: &Progress) -> Outcome {
+/// Run the cells of `plan` that `control.done` does not hold, on `threads` workers
+/// (0 = all cores).
+pub fn run(plan: &Plan, ctx: &Context, threads: usize, progress: &Progress, control: Control) -> Outcome {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
     let t0 = Instant::now();
-    let mut rows = pool.install(|| run_in_pool(plan, ctx, progress));
-    rows.sort_by(|a, b| {
-        (a.method != Method::Ls, a.nb, a.nf, a.k_index).cmp(&(b.method != Method::Ls, b.nb, b.nf, b.k_index))
-    });
-    Outcome { rows, seconds: t0.elapsed().as_secs_f64() }
+    let mut done: HashMap<RowKey, CellRow> = HashMap::with_capacity(control.done.len());
+    for row in control.done {
+        done.entry(row_key(&row)).or_insert(row);
+    }
+    let resumed = done.values().filter(|r| r.method == Method::Huber).count();
+    let new_rows = pool.install(|| run_in_pool(plan, ctx, progress, &done, control.on_row, control.stop));
+    let computed = new_rows.iter().filter(|r| r.method == Method::Huber).count();
+    let mut rows: Vec<CellRow> = done.into_values().chain(new_rows).collect();
+    sort_rows(&mut rows);
+    let interrupted = rows.len() < plan.pairs.len() + plan.n_cells();
+    Outcome { rows, seconds: t0.elapsed().as_secs_f64(), resumed, computed, interrupted }
 }
 
-fn run_in_pool(plan: &Plan, ctx: &Context, progress: &Progress) -> Vec<CellRow> {
+/// What the Huber cells of a pair take from its least-squares phase: the `ls` row, and sigma
+/// and theta_LS read from it when the fit is usable.
+struct PairLs {
+    row: CellRow,
+    start: Option<(f64, Vec<f64>)>,
+    /// Further Huber starts ([`estimate::LsFit::alternatives`]).
+    alternatives: Vec<Vec<f64>>,
+}
+
+impl PairLs {
+    fn from_row(row: CellRow, alternatives: Vec<Vec<f64>>) -> Self {
+        // `CellRow::from_ls` marks a fit ok exactly when `LsFit::ok` holds (finite sigma, not
+        // non_finite), so this is the fresh run's condition too.
+        let start = match (row.ok(), row.sigma) {
+            (true, Some(sigma)) => Some((sigma, [&row.b[..], &row.f[..]].concat())),
+            _ => None,
+        };
+        PairLs { row, start, alternatives }
+    }
+}
+
+/// Parameters a finished Huber row hands to the next cell of its chain (none if it failed).
+fn chain_theta(row: &CellRow) -> Option<Vec<f64>> {
+    row.ok().then(|| [&row.b[..], &row.f[..]].concat())
+}
+
+fn run_in_pool(
+    plan: &Plan,
+    ctx: &Context,
+    progress: &Progress,
+    done: &HashMap<RowKey, CellRow>,
+    on_row: &(dyn Fn(&CellRow) + Sync),
+    stop: &AtomicBool,
+) -> Vec<CellRow> {
     let judge = ctx.judge();
     let delay = plan.delay;
+    let stopped = || stop.load(Ordering::Relaxed);
+    let huber_key = |cell: Cell| {
+        let pair = plan.pairs[cell.pair];
+        (true, pair.nb as u32, pair.nf as u32, Some(cell.k_index as u32))
+    };
     progress.message("least-squares phase");
-    let ls: Vec<(Option<LsFit>, CellRow)> = plan
+    // (the pair's fit, whether it was computed in this run); None: stopped before it.
+    let ls: Vec<Option<(PairLs, bool)>> = plan
         .pairs
         .par_iter()
         .map_init(Workspace::new, |ws, pair| {
+            let resumed = done.get(&(false, pair.nb as u32, pair.nf as u32, None));
+            let p = plan.pairs.iter().position(|q| q == pair).expect("pair of the plan");
+            let all_done = (0..plan.ks.len()).all(|k| done.contains_key(&huber_key(Cell { pair: p, k_index: k })));
+            if let (Some(row), true) = (resumed, all_done) {
+                return Some((PairLs::from_row(row.clone(), Vec::new()), false));
+            }
+            if stopped() {
+                return None;
+            }
             let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay };
             let t = Instant::now();
-            match catch_unwind(AssertUnwindSafe(|| estimate::fit_ls(&prob, &judge, &ctx.solver, ws))) {
-                Ok(fit) => {
-                    let row = CellRow::from_ls(&fit, t.elapsed().as_secs_f64());
-                    (fit.ok().then_some(fit), row)
-                }
-                Err(e) => {
-                    let reason = format!("least-squares phase panicked: {}", panic_message(e));
-                    (None, CellRow::failed(Method::Ls, pair.nb, pair.nf, delay, None, reason))
-                }
+            // A resumed pair with cells left is fitted again for its extra Huber starts: the
+            // least-squares phase is deterministic, so this reproduces the interrupted run.
+            let (row, alternatives) =
+                match catch_unwind(AssertUnwindSafe(|| estimate::fit_ls(&prob, &judge, &ctx.solver, ws))) {
+                    Ok(fit) => (CellRow::from_ls(&fit, t.elapsed().as_secs_f64()), fit.alternatives),
+                    Err(e) => {
+                        let reason = format!("least-squares phase panicked: {}", panic_message(e));
+                        (CellRow::failed(Method::Ls, pair.nb, pair.nf, delay, None, reason), Vec::new())
+                    }
+                };
+            if let Some(row) = resumed {
+                return Some((PairLs::from_row(row.clone(), alternatives), false));
             }
+            on_row(&row);
+            Some((PairLs::from_row(row, alternatives), true))
         })
         .collect();
     progress.message("Huber phase");
@@ -94,77 +209,110 @@ fn run_in_pool(plan: &Plan, ctx: &Context, progress: &Progress) -> Vec<CellRow> 
         StartStrategy::Ls => plan
             .cells()
             .par_iter()
-            .map_init(Workspace::new, |ws, cell| {
-                let row = huber_cell(plan, ctx, &judge, &ls[cell.pair], *cell, None, ws);
-                progress.inc(1);
-                row.0
-            })
-            .collect(),
-        StartStrategy::Neighbour | StartStrategy::Best => (0..plan.pairs.len())
-            .into_par_iter()
-            .map_init(Workspace::new, |ws, p| {
-                let mut out = Vec::with_capacity(plan.ks.len());
-                let mut prev: Option<Vec<f64>> = None;
-                for ki in plan.k_chain() {
-                    let (row, theta) =
-                        huber_cell(plan, ctx, &judge, &ls[p], Cell { pair: p, k_index: ki }, prev.as_deref(), ws);
-                    prev = theta.or(prev);
-                    out.push(row);
-                    progress.inc(1);
+            .map_init(Workspace::new, |ws, &cell| {
+                if done.contains_key(&huber_key(cell)) || stopped() {
+                    return None;
                 }
-                out
+                // A pair without a fit here was skipped because of a stop.
+                let (pair_ls, _) = ls[cell.pair].as_ref()?;
+                let row = huber_cell(plan, ctx, &judge, pair_ls, cell, None, ws);
+                on_row(&row);
+                progress.inc(1);
+                Some(row)
             })
             .flatten()
             .collect(),
+        StartStrategy::Neighbour | StartStrategy::Best => {
+            let chain = plan.k_chain();
+            (0..plan.pairs.len())
+                .into_par_iter()
+                .map_init(Workspace::new, |ws, p| {
+                    let mut out = Vec::new();
+                    let Some((pair_ls, _)) = &ls[p] else { return out };
+                    let mut prev: Option<Vec<f64>> = None;
+                    for &ki in &chain {
+                        let cell = Cell { pair: p, k_index: ki };
+                        let row = match done.get(&huber_key(cell)) {
+                            Some(row) => {
+                                prev = chain_theta(row).or(prev);
+                                continue;
+                            }
+                            None if stopped() => break,
+                            None => huber_cell(plan, ctx, &judge, pair_ls, cell, prev.as_deref(), ws),
+                        };
+                        // From the row, like a resumed chain: one path, the same bits.
+                        prev = chain_theta(&row).or(prev);
+                        on_row(&row);
+                        progress.inc(1);
+                        out.push(row);
+                    }
+                    out
+                })
+                .flatten()
+                .collect()
+        }
     };
-    let mut rows: Vec<CellRow> = ls.into_iter().map(|(_, r)| r).collect();
+    let mut rows: Vec<CellRow> = ls.into_iter().flatten().filter(|(_, fresh)| *fresh).map(|(p, _)| p.row).collect();
     rows.extend(huber_rows);
     rows
 }
 
-/// One Huber cell; returns its row and (when ok) its parameters for the next cell of a chain.
+/// One Huber cell of the pair whose least-squares phase is `ls`, started from theta_LS and/or
+/// `neighbour` as the plan's start strategy says.
 fn huber_cell(
     plan: &Plan,
     ctx: &Context,
     judge: &Judge,
-    ls: &(Option<LsFit>, CellRow),
+    ls: &PairLs,
     cell: Cell,
     neighbour: Option<&[f64]>,
     ws: &mut Workspace,
-) -> (CellRow, Option<Vec<f64>>) {
+) -> CellRow {
     let pair = plan.pairs[cell.pair];
     let k = plan.ks[cell.k_index];
-    let failed = |reason: String| {
-        (CellRow::failed(Method::Huber, pair.nb, pair.nf, plan.delay, Some((cell.k_index, k)), reason), None)
-    };
-    let Some(lsfit) = &ls.0 else {
+    let failed =
+        |reason: String| CellRow::failed(Method::Huber, pair.nb, pair.nf, plan.delay, Some((cell.k_index, k)), reason);
+    let Some((sigma, theta_ls)) = &ls.start else {
         return failed(format!(
             "no least-squares fit for this order pair: {}",
-            ls.1.reason.as_deref().unwrap_or("it failed")
+            ls.row.reason.as_deref().unwrap_or("it failed")
         ));
     };
     let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay: plan.delay };
     let t = Instant::now();
     let run = catch_unwind(AssertUnwindSafe(|| {
-        let mut fit_from = |start: &[f64]| estimate::fit_huber(&prob, lsfit.sigma, k, start, judge, &ctx.solver, ws);
-        let theta_ls = lsfit.theta();
+        let mut fit_from = |start: &[f64]| estimate::fit_huber(&prob, *sigma, k, start, judge, &ctx.solver, ws);
+        // theta_LS, then the pair's extra starts; the lowest criterion wins, ties the earlier.
+        let mut from_ls = || {
+            let mut best = (fit_from(theta_ls), "ls");
+            for alt in &ls.alternatives {
+                let h = fit_from(alt);
+                if h.criterion < best.0.criterion || !best.0.criterion.is_finite() {
+                    best = (h, "ls_alt");
+                }
+            }
+            best
+        };
         match (plan.start, neighbour) {
-            (StartStrategy::Ls, _) | (_, None) => (fit_from(&theta_ls), "ls"),
+            (StartStrategy::Ls, _) | (_, None) => from_ls(),
             (StartStrategy::Neighbour, Some(nb)) => (fit_from(nb), "neighbour"),
             (StartStrategy::Best, Some(nb)) => {
-                let a = fit_from(&theta_ls);
+                let a = from_ls();
                 let b = fit_from(nb);
-                // Ties keep the paper's start.
-                if b.criterion < a.criterion { (b, "neighbour") } else { (a, "ls") }
+                // Ties keep the least-squares start.
+                if b.criterion < a.0.criterion { (b, "neighbour") } else { a }
             }
         }
     }));
     match run {
-        Ok((fit, start)) => {
-            let row = CellRow::from_huber(&fit, lsfit, cell.k_index, start, t.elapsed().as_secs_f64());
-            let theta = row.ok().then(|| [&fit.b[..], &fit.f[..]].concat());
-            (row, theta)
-        }
+        Ok((fit, start)) => CellRow::from_huber_of_pair(
+            &fit,
+            (pair.nb, pair.nf, plan.delay),
+            *sigma,
+            cell.k_index,
+            start,
+            t.elapsed().as_secs_f64(),
+        ),
         Err(e) => failed(format!("Huber fit panicked: {}", panic_message(e))),
     }
 }

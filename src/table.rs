@@ -103,7 +103,19 @@ impl CellRow {
 
     /// Row of a Huber fit of the order pair whose least-squares fit is `ls`.
     pub fn from_huber(h: &HuberFit, ls: &LsFit, k_index: usize, start: &str, seconds: f64) -> Self {
-        let (nb, nf, delay, sigma) = (ls.nb, ls.nf, ls.delay, ls.sigma);
+        Self::from_huber_of_pair(h, (ls.nb, ls.nf, ls.delay), ls.sigma, k_index, start, seconds)
+    }
+
+    /// [`CellRow::from_huber`] from the pair's structure `(nb, nf, delay)` and sigma alone: a
+    /// resumed sweep has the pair's `ls` row (from a checkpoint part), not its [`LsFit`].
+    pub fn from_huber_of_pair(
+        h: &HuberFit,
+        (nb, nf, delay): (usize, usize, usize),
+        sigma: f64,
+        k_index: usize,
+        start: &str,
+        seconds: f64,
+    ) -> Self {
         let ok = h.criterion.is_finite() && h.termination != crate::estimate::Termination::NonFinite;
         CellRow {
             method: Method::Huber,

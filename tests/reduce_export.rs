@@ -250,3 +250,45 @@ fn selection_from_a_written_table_to_json() {
     assert_eq!(parsed.m2.as_ref().map(|p| p.model.nf), sel.m2.as_ref().map(|p| p.model.nf));
     assert_eq!(dir_entries(dir.path()), vec!["cells.parquet", "selection.json"]);
 }
+
+#[test]
+fn extra_columns_are_ignored() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cells.parquet");
+    let rows = sample_rows();
+    write_cells(&path, &rows).unwrap();
+    let mut df = ParquetReader::new(File::open(&path).unwrap()).finish().unwrap();
+    df.with_column(Column::new("note".into(), vec!["a", "b", "c", "d", "e"])).unwrap();
+    ParquetWriter::new(File::create(&path).unwrap()).finish(&mut df).unwrap();
+    assert_rows_identical(&read_cells(&path).unwrap(), &rows);
+}
+
+#[test]
+fn corrupt_files_are_errors_not_panics() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.parquet");
+    write_cells(&good, &sample_rows()).unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+    let bad = dir.path().join("bad.parquet");
+    // The footer (file metadata, its length and the magic) is where a damaged file is caught.
+    // Damage inside a data page header is not tried: polars 0.55.2 can then attempt a huge
+    // allocation and abort the process, which no error handling can intercept.
+    let n = bytes.len();
+    let footer_len = u32::from_le_bytes(bytes[n - 8..n - 4].try_into().unwrap()) as usize;
+    let footer_start = n - 8 - footer_len;
+    let mut errors = 0;
+    for i in (footer_start..n).chain(0..4) {
+        let mut b = bytes.clone();
+        b[i] = b[i].wrapping_add(0x5b);
+        std::fs::write(&bad, &b).unwrap();
+        if let Err(e) = read_cells(&bad) {
+            assert!(e.is_bad_input() && e.to_string().contains("bad.parquet"), "{e}");
+            errors += 1;
+        }
+    }
+    for len in [0, 4, n / 2, n - 1] {
+        std::fs::write(&bad, &bytes[..len]).unwrap();
+        assert!(read_cells(&bad).unwrap_err().is_bad_input());
+    }
+    assert!(errors > 0);
+}

@@ -142,8 +142,7 @@ pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Work
         }
     }
     let best = best_of(&sols);
-    // The runner-up least-squares minimum is a second Huber start; more starts cost more than
-    // they gained on the peer comparison (README, Performance).
+    // The runner-up least-squares minima are further Huber starts (solver.huber_extra_starts).
     let mut others: Vec<&Solution> = sols
         .iter()
         .enumerate()
@@ -154,12 +153,13 @@ pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Work
         .map(|(_, sol)| sol)
         .collect();
     others.sort_by(|a, b| a.criterion.total_cmp(&b.criterion));
-    let mut alternatives: Vec<Vec<f64>> = others.iter().take(HUBER_EXTRA_STARTS).map(|s| s.theta.clone()).collect();
+    let mut alternatives: Vec<Vec<f64>> =
+        others.iter().take(opts.huber_extra_starts).map(|s| s.theta.clone()).collect();
     // On the stability boundary the Huber fit cannot move the near-unit pole (1/F has an
     // almost infinite memory there), while a start just inside often reaches a much lower W.
     let theta = &sols[best].theta;
     let radius = crate::oe::max_pole_radius(&theta[prob.nb..]);
-    if radius > BOUNDARY && radius.is_finite() {
+    if opts.huber_extra_starts > 0 && radius > BOUNDARY && radius.is_finite() {
         let mut c = theta.clone();
         let rho = CONTRACTED / radius;
         for (j, v) in c[prob.nb..].iter_mut().enumerate() {
@@ -173,8 +173,6 @@ pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Work
     fit
 }
 
-/// Least-squares minima besides the best one that also start the Huber phase.
-const HUBER_EXTRA_STARTS: usize = 2;
 /// k of the robust detour start of the least-squares phase (see [`fit_ls`]).
 const ROBUST_START_K: [f64; 2] = [0.5, 0.1];
 /// Pole radius above which a least-squares fit counts as on the stability boundary.

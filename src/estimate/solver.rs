@@ -50,6 +50,10 @@ pub struct SolverOptions {
     pub lambda0: f64,
     /// Huber Hessian weighting.
     pub huber_hessian: HuberHessian,
+    /// Extra starts of each Huber fit besides theta_LS: the runner-up least-squares minima
+    /// (and a contracted theta_LS when it sits on the stability boundary). 0 = the paper's
+    /// single start.
+    pub huber_extra_starts: usize,
 }
 
 impl Default for SolverOptions {
@@ -61,6 +65,7 @@ impl Default for SolverOptions {
             gtol: 1e-9,
             lambda0: 1e-3,
             huber_hessian: HuberHessian::GaussNewton,
+            huber_extra_starts: 2,
         }
     }
 }

@@ -22,7 +22,10 @@
 //! Compression is zstd (polars' default). The file is written atomically (see [`crate::export`]),
 //! so a sweep can rewrite it as a checkpoint while a reader looks at the previous version.
 //! Floats roundtrip bit-exactly; reading checks every column's presence and dtype, so a file
-//! from another tool or an older layout fails with a message naming the column.
+//! from another tool or an older layout fails with a message naming the column. Extra columns
+//! are ignored. A panic of the Parquet decoder on a damaged file becomes an input error too;
+//! what cannot be caught is an allocation failure: polars 0.55.2 may try to allocate an absurd
+//! size when a *data page header* is damaged, which aborts the process.
 
 use crate::error::{Error, Result};
 use crate::table::{CellRow, Method};
@@ -49,10 +52,33 @@ pub fn write_cells(path: &Path, rows: &[CellRow]) -> Result<()> {
 /// when one is missing, has the wrong dtype, or holds a null where the row type has no `Option`.
 pub fn read_cells(path: &Path) -> Result<Vec<CellRow>> {
     let file = File::open(path).map_err(|e| Error::input(path, format!("cannot open: {e}")))?;
-    let df = ParquetReader::new(file)
-        .finish()
-        .map_err(|e| Error::input(path, format!("not a readable Parquet file: {e}")))?;
-    from_frame(&df).map_err(|msg| Error::input(path, msg))
+    // The Parquet decoder trusts the file's metadata and can panic on a corrupt file; a bad file
+    // must be an input error, not a crash of the sweep or the report.
+    let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| from_frame(&read_frame(file)?)));
+    match read {
+        Ok(result) => result.map_err(|msg| Error::input(path, msg)),
+        Err(payload) => {
+            let what = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown failure".into());
+            Err(Error::input(path, format!("not a readable Parquet file: the reader failed ({what})")))
+        }
+    }
+}
+
+/// Read our columns only: the names are checked against the file's schema first so a missing
+/// one is named, and extra columns (possibly of types this build cannot decode) are skipped.
+fn read_frame(file: File) -> std::result::Result<DataFrame, String> {
+    let unreadable = |e: PolarsError| format!("not a readable Parquet file: {e}");
+    let mut reader = ParquetReader::new(file);
+    let schema = reader.schema().map_err(unreadable)?;
+    if let Some((name, _)) = COLUMNS.iter().find(|(name, _)| !schema.contains(name)) {
+        return Err(format!("missing column `{name}` (not a table written by oesweep)"));
+    }
+    let names = COLUMNS.iter().map(|(name, _)| name.to_string()).collect();
+    reader.with_columns(Some(names)).finish().map_err(unreadable)
 }
 
 /// Column names in table order; the single source for writing and for the schema check.
@@ -165,6 +191,10 @@ fn column<'a>(df: &'a DataFrame, name: &str, kind: Kind) -> std::result::Result<
     if *c.dtype() != expected {
         return Err(format!("column `{name}` has type {}, expected {expected}", c.dtype()));
     }
+    // A corrupt file can decode into columns of different lengths; indexing them would panic.
+    if c.len() != df.height() {
+        return Err(format!("column `{name}` has {} values for {} rows (corrupt file)", c.len(), df.height()));
+    }
     Ok(c)
 }
 
@@ -172,30 +202,35 @@ fn dtype_err(name: &str, e: PolarsError) -> String {
     format!("column `{name}`: {e}")
 }
 
+/// The decoded values of a column must match the frame's height (see [`column`]).
+fn checked<T>(df: &DataFrame, name: &str, values: Vec<T>) -> std::result::Result<Vec<T>, String> {
+    if values.len() == df.height() {
+        Ok(values)
+    } else {
+        Err(format!("column `{name}` has {} values for {} rows (corrupt file)", values.len(), df.height()))
+    }
+}
+
 fn opt_f64(df: &DataFrame, name: &str) -> std::result::Result<Vec<Option<f64>>, String> {
-    Ok(column(df, name, Kind::F64)?.f64().map_err(|e| dtype_err(name, e))?.iter().collect())
+    checked(df, name, column(df, name, Kind::F64)?.f64().map_err(|e| dtype_err(name, e))?.iter().collect())
 }
 
 fn opt_u32(df: &DataFrame, name: &str) -> std::result::Result<Vec<Option<u32>>, String> {
-    Ok(column(df, name, Kind::U32)?.u32().map_err(|e| dtype_err(name, e))?.iter().collect())
+    checked(df, name, column(df, name, Kind::U32)?.u32().map_err(|e| dtype_err(name, e))?.iter().collect())
 }
 
 fn opt_str(df: &DataFrame, name: &str) -> std::result::Result<Vec<Option<String>>, String> {
-    Ok(column(df, name, Kind::Str)?
-        .str()
-        .map_err(|e| dtype_err(name, e))?
-        .iter()
-        .map(|s| s.map(str::to_string))
-        .collect())
+    let values = column(df, name, Kind::Str)?.str().map_err(|e| dtype_err(name, e))?;
+    checked(df, name, values.iter().map(|s| s.map(str::to_string)).collect())
 }
 
 fn opt_bool(df: &DataFrame, name: &str) -> std::result::Result<Vec<Option<bool>>, String> {
-    Ok(column(df, name, Kind::Bool)?.bool().map_err(|e| dtype_err(name, e))?.iter().collect())
+    checked(df, name, column(df, name, Kind::Bool)?.bool().map_err(|e| dtype_err(name, e))?.iter().collect())
 }
 
 fn opt_list(df: &DataFrame, name: &str) -> std::result::Result<Vec<Option<Vec<f64>>>, String> {
     let lists = column(df, name, Kind::ListF64)?.list().map_err(|e| dtype_err(name, e))?;
-    lists
+    let values = lists
         .series_iter()
         .enumerate()
         .map(|(i, s)| {
@@ -208,7 +243,8 @@ fn opt_list(df: &DataFrame, name: &str) -> std::result::Result<Vec<Option<Vec<f6
             })
             .transpose()
         })
-        .collect()
+        .collect::<std::result::Result<Vec<_>, String>>()?;
+    checked(df, name, values)
 }
 
 /// A value the row type requires (no `Option`): a null is a malformed file.

@@ -1,0 +1,206 @@
+//! The bad-input corpus (`tests/bad_inputs/`): every case is a job that is wrong in exactly one
+//! way, and both `oesweep plan` and `oesweep run` must reject it the same way: exit code 2, one
+//! line on stderr that names the offending file and says what is wrong, and nothing written.
+//!
+//! A case is a folder with `job.json`, its data files and `expect.txt`:
+//!
+//! ```text
+//! file: data.csv                      <- the file the message must name (path as resolved)
+//! message: line 17, column 'y': ...   <- a substring of the message
+//! ```
+//!
+//! Each command runs on a fresh copy of the case in a temporary folder, so the repository is
+//! never written. "Nothing written" is checked on the whole copy (every path and every byte is
+//! the same afterwards), which covers both a job whose output folder does not exist (it must
+//! still not exist) and one whose output folder holds results of an earlier run (`out/` with a
+//! sentinel file: it must be untouched). Folders starting with `_` are not cases (`_valid` is
+//! the well-formed job all cases are derived from; it shows that the checks would notice a
+//! write).
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const CORPUS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/bad_inputs");
+
+/// Every command must answer within this time: validation reads small files only, and a case
+/// that gets past validation would start estimating (or allocating) instead of failing.
+const TIMEOUT: Duration = Duration::from_secs(60);
+
+struct Case {
+    name: String,
+    dir: PathBuf,
+    /// File the message must name, relative to the case folder.
+    file: String,
+    /// Substring of the message.
+    message: String,
+}
+
+fn cases() -> Vec<Case> {
+    let mut out = Vec::new();
+    for entry in fs::read_dir(CORPUS).expect("corpus folder") {
+        let dir = entry.unwrap().path();
+        let name = dir.file_name().unwrap().to_str().unwrap().to_string();
+        if !dir.is_dir() || name.starts_with('_') {
+            continue;
+        }
+        let expect = fs::read_to_string(dir.join("expect.txt")).unwrap_or_else(|e| panic!("{name}/expect.txt: {e}"));
+        let field = |key: &str| {
+            expect
+                .lines()
+                .find_map(|l| l.strip_prefix(key))
+                .map(|v| v.trim().to_string())
+                .unwrap_or_else(|| panic!("{name}/expect.txt: no '{key}' line"))
+        };
+        let (file, message) = (field("file:"), field("message:"));
+        assert!(!message.is_empty(), "{name}/expect.txt: empty message");
+        out.push(Case { name, dir, file, message });
+    }
+    out.sort_by(|a, b| a.name.cmp(&b.name));
+    out
+}
+
+fn copy_tree(from: &Path, to: &Path) {
+    fs::create_dir_all(to).unwrap();
+    for entry in fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_tree(&entry.path(), &target);
+        } else {
+            fs::copy(entry.path(), &target).unwrap();
+        }
+    }
+}
+
+/// Every path under `root` with its contents (`None` for a folder).
+fn snapshot(root: &Path) -> BTreeMap<PathBuf, Option<Vec<u8>>> {
+    fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<PathBuf, Option<Vec<u8>>>) {
+        for entry in fs::read_dir(dir).unwrap() {
+            let p = entry.unwrap().path();
+            let rel = p.strip_prefix(root).unwrap().to_path_buf();
+            if p.is_dir() {
+                out.insert(rel, None);
+                walk(root, &p, out);
+            } else {
+                out.insert(rel, Some(fs::read(&p).unwrap()));
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(root, root, &mut out);
+    out
+}
+
+struct Outcome {
+    code: Option<i32>,
+    stdout: String,
+    stderr: String,
+}
+
+/// Runs the binary in `cwd` (so that nothing lands in the repository even if a relative path
+/// escaped resolution), killing it after [`TIMEOUT`].
+fn oesweep(cwd: &Path, args: &[&str]) -> Outcome {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .args(args)
+        .current_dir(cwd)
+        .env("RUST_BACKTRACE", "0")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("binary starts");
+    let t0 = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if t0.elapsed() > TIMEOUT {
+            child.kill().unwrap();
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let o = child.wait_with_output().unwrap();
+    Outcome {
+        code: o.status.code(),
+        stdout: String::from_utf8_lossy(&o.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
+    }
+}
+
+/// Checks one case under both commands; returns the problems found (empty when it passes).
+fn check(case: &Case) -> Vec<String> {
+    let tmp = tempfile::tempdir().unwrap();
+    // Canonical, because the program resolves the job's folder to an absolute path.
+    let root = tmp.path().canonicalize().unwrap();
+    let dir = root.join(&case.name);
+    copy_tree(&case.dir, &dir);
+    let job = dir.join("job.json");
+    let named = format!("{}: ", dir.join(&case.file).display());
+    let before = snapshot(&root);
+    let had_output = dir.join("out").exists();
+    let mut problems = Vec::new();
+    for args in [vec!["plan", job.to_str().unwrap()], vec!["run", job.to_str().unwrap(), "--quiet"]] {
+        let o = oesweep(&root, &args);
+        let what = format!("{} `oesweep {}`", case.name, args[0]);
+        let mut fail = |msg: String| problems.push(format!("{what}: {msg}\n    stderr: {:?}", o.stderr));
+        if o.code != Some(2) {
+            fail(format!("exit code {:?}, expected 2", o.code));
+        }
+        let lines: Vec<&str> = o.stderr.lines().collect();
+        if lines.len() != 1 || !o.stderr.ends_with('\n') {
+            fail(format!("{} lines on stderr, expected exactly one", lines.len()));
+        }
+        if !o.stderr.contains(&named) {
+            fail(format!("the message does not name the file: expected '{named}'"));
+        }
+        if !o.stderr.contains(&case.message) {
+            fail(format!("the message lacks '{}'", case.message));
+        }
+        if !o.stdout.is_empty() {
+            fail(format!("unexpected output on stdout: {:?}", o.stdout));
+        }
+        if snapshot(&root) != before {
+            fail("files were written, changed or removed".into());
+        }
+        if !had_output && dir.join("out").exists() {
+            fail("the output folder was created".into());
+        }
+        if Path::new("/proc/oesweep-test").exists() {
+            fail("/proc/oesweep-test exists".into());
+        }
+    }
+    problems
+}
+
+#[test]
+fn every_bad_input_is_exit_2_one_line_and_writes_nothing() {
+    let cases = cases();
+    assert!(cases.len() >= 20, "the corpus has only {} cases", cases.len());
+    assert!(
+        cases.iter().any(|c| c.dir.join("out").join("sentinel.txt").is_file()),
+        "no case has an existing output folder with a sentinel file"
+    );
+    let problems: Vec<String> = cases.iter().flat_map(check).collect();
+    assert!(problems.is_empty(), "{} problem(s):\n{}", problems.len(), problems.join("\n"));
+}
+
+/// The control: the job every case is derived from passes `plan`, and `run` writes its output
+/// folder, so the checks above would see a write if validation let a case through.
+#[test]
+fn the_valid_job_passes_and_its_run_is_visible() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().canonicalize().unwrap();
+    let dir = root.join("_valid");
+    copy_tree(&Path::new(CORPUS).join("_valid"), &dir);
+    let job = dir.join("job.json");
+    let before = snapshot(&root);
+    let plan = oesweep(&root, &["plan", job.to_str().unwrap()]);
+    assert_eq!(plan.code, Some(0), "{}", plan.stderr);
+    assert!(plan.stderr.is_empty(), "{}", plan.stderr);
+    assert_eq!(snapshot(&root), before, "plan wrote files");
+    let run = oesweep(&root, &["run", job.to_str().unwrap(), "--quiet"]);
+    assert!(matches!(run.code, Some(0 | 1)), "exit {:?}: {}", run.code, run.stderr);
+    assert!(dir.join("out").join("cells.parquet").is_file());
+    assert_ne!(snapshot(&root), before);
+}
