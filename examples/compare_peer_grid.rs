@@ -31,7 +31,11 @@ fn main() {
         let key = (v["nb"].as_u64().unwrap() as usize, v["nf"].as_u64().unwrap() as usize);
         by_pair.entry(key).or_default().push(v);
     }
-    let opts = SolverOptions::default();
+    // OESWEEP_EXTRA_STARTS overrides solver.huber_extra_starts (to measure its effect).
+    let mut opts = SolverOptions::default();
+    if let Ok(v) = std::env::var("OESWEEP_EXTRA_STARTS") {
+        opts.huber_extra_starts = v.parse().expect("a count");
+    }
     let mut ws = Workspace::new();
     let tol = 1e-4;
     let (mut ls_ok, mut ls_n, mut h_ok, mut h_n) = (0, 0, 0, 0);

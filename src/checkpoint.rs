@@ -5,9 +5,20 @@
 //!
 //! ```text
 //! parts/manifest.json          what job and data the parts belong to
+//! parts/job.json               the normalised job (with its paths), for `oesweep merge`
 //! parts/part-000001.parquet    finished rows (the columns of cells.parquet), in batches
 //! parts/part-000002.parquet
+//! parts/shard-0-of-4/          the same three kinds of file for `run --shard 0/4`
+//! parts/shard-1-of-4/          ...
 //! ```
+//!
+//! **Shards** ([`crate::shard`]) run as separate processes, possibly on several nodes at once,
+//! into the same output folder. Each has its own checkpoint folder, so part numbers, temporary
+//! files, manifests and `--force` deletions of one shard never touch another's files; they
+//! are the same rules as a whole run's, one folder down. A shard does not merge: `oesweep
+//! merge` ([`gather`]) reads every folder, checks that all belong to the same job, and writes
+//! the result files as a whole run would. A whole run resumes from shard folders too (the
+//! cells of a failed shard can be finished on one machine), and its merge deletes them all.
 //!
 //! **One writer, in batches.** The workers send every finished row (Huber cells and the `ls`
 //! fits of the pairs) over a channel to one writer thread ([`Writer`]), which buffers them and
@@ -51,8 +62,9 @@
 
 use crate::error::{Error, Result};
 use crate::export;
-use crate::job::ValidJob;
+use crate::job::{Job, ValidJob};
 use crate::plan::Plan;
+use crate::shard::Shard;
 use crate::sweep::{RowKey, row_key};
 use crate::table::{CellRow, Method};
 use serde::{Deserialize, Serialize};
@@ -68,8 +80,11 @@ use std::time::{Duration, Instant};
 
 /// Folder of the checkpoint inside the output folder.
 pub const PARTS_DIR: &str = "parts";
-/// Manifest file inside [`PARTS_DIR`].
+/// Manifest file inside a checkpoint folder.
 pub const MANIFEST: &str = "manifest.json";
+/// The normalised job (paths included) inside a checkpoint folder: what `oesweep merge`
+/// needs to rebuild the plan and write `job.json` without the job file.
+pub const JOB_FILE: &str = "job.json";
 /// A part is written at the latest when this many rows are waiting.
 pub const BATCH_ROWS: usize = 500;
 /// A part is written at the latest this many seconds after its first row finished.
@@ -90,6 +105,31 @@ fn part_number(name: &str) -> Option<u64> {
 
 fn sha256_hex(bytes: &[u8]) -> String {
     Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Checkpoint folder of a run: `<out>/parts` for a whole run, `<out>/parts/shard-I-of-N`
+/// for a shard.
+pub fn folder(out: &Path, shard: Option<Shard>) -> PathBuf {
+    let parts = out.join(PARTS_DIR);
+    match shard {
+        Some(s) => parts.join(s.folder_name()),
+        None => parts,
+    }
+}
+
+/// The part of a normalised job that identifies it (its paths left out; see [`Manifest`]) and
+/// the SHA-256 of that as compact JSON.
+fn job_identity(job: &Job) -> (Value, String) {
+    let mut job = serde_json::to_value(job).expect("a job serialises");
+    let obj = job.as_object_mut().expect("a job is a JSON object");
+    obj.remove("output");
+    for field in ["data", "validation"] {
+        if let Some(Value::Object(spec)) = obj.get_mut(field) {
+            spec.remove("path");
+        }
+    }
+    let sha = sha256_hex(&serde_json::to_vec(&job).expect("JSON serialises"));
+    (job, sha)
 }
 
 /// Hash of one data file.
@@ -121,15 +161,7 @@ impl Manifest {
     /// The manifest of a validated job whose inputs have been loaded (so the validation
     /// column is resolved). Reads the data files again to hash their bytes.
     pub fn of_job(vj: &ValidJob) -> Result<Manifest> {
-        let mut job = serde_json::to_value(&vj.job).expect("a job serialises");
-        let obj = job.as_object_mut().expect("a job is a JSON object");
-        obj.remove("output");
-        for field in ["data", "validation"] {
-            if let Some(Value::Object(spec)) = obj.get_mut(field) {
-                spec.remove("path");
-            }
-        }
-        let job_sha256 = sha256_hex(&serde_json::to_vec(&job).expect("JSON serialises"));
+        let (job, job_sha256) = job_identity(&vj.job);
         let mut data = Vec::new();
         let specs = std::iter::once(("data", &vj.job.data)).chain(vj.job.validation.iter().map(|v| ("validation", v)));
         for (role, spec) in specs {
@@ -342,47 +374,199 @@ fn remove_temporaries(dir: &Path, names: &[&str]) {
     }
 }
 
-/// Delete the checkpoint folder of `out` (a finished run no longer needs it; `--force`
-/// discards it). It is first renamed to `parts.deleted-<pid>`, which is atomic, so a crash in
-/// the middle of the deletion leaves a folder that is never read as a checkpoint (the next
-/// [`open`] deletes it) instead of a manifest-less or partial `parts`.
-pub fn remove(out: &Path) -> Result<()> {
-    let parts = out.join(PARTS_DIR);
-    if !parts.exists() {
+/// Delete a checkpoint folder. It is first renamed to `<name>.deleted-<pid>` next to it, which
+/// is atomic, so a crash in the middle of the deletion leaves a folder that is never read as a
+/// checkpoint (the next [`open`] deletes it) instead of a manifest-less or partial one.
+fn remove_folder(dir: &Path) -> Result<()> {
+    if !dir.exists() {
         return Ok(());
     }
-    let doomed = out.join(format!("{PARTS_DIR}.deleted-{}", std::process::id()));
-    let target = if std::fs::rename(&parts, &doomed).is_ok() { doomed } else { parts };
+    let name = dir.file_name().and_then(|n| n.to_str()).unwrap_or(PARTS_DIR);
+    let doomed = dir.with_file_name(format!("{name}.deleted-{}", std::process::id()));
+    let target = if std::fs::rename(dir, &doomed).is_ok() { doomed } else { dir.to_path_buf() };
     std::fs::remove_dir_all(&target).map_err(|e| Error::output(&target, format!("cannot delete checkpoint: {e}")))
 }
 
-/// Make the checkpoint folder `<out>/parts` ready for this run, after [`inspect`] accepted it
-/// (or with `force`): with `force` delete what is there first; create the folder; delete
-/// temporary files of killed writers (parts, and the result files in `out`); write the
-/// manifest unless the folder already has it.
-pub fn open(out: &Path, manifest: &Manifest, force: bool) -> Result<()> {
-    let parts = &out.join(PARTS_DIR);
-    if force {
-        remove(out)?;
-    }
-    // Leftovers of deletions that a crash interrupted (see `remove`). Best effort.
-    if let Ok(entries) = std::fs::read_dir(out) {
-        let prefix = format!("{PARTS_DIR}.deleted-");
-        for entry in entries.flatten() {
-            if entry.file_name().to_str().is_some_and(|n| n.starts_with(&prefix)) {
-                let _ = std::fs::remove_dir_all(entry.path());
-            }
+/// Delete leftovers of [`remove_folder`] calls that a crash interrupted: `<name>.deleted-*`
+/// in `parent`. Best effort.
+fn remove_deleted_leftovers(parent: &Path, name: &str) {
+    let Ok(entries) = std::fs::read_dir(parent) else { return };
+    let prefix = format!("{name}.deleted-");
+    for entry in entries.flatten() {
+        if entry.file_name().to_str().is_some_and(|n| n.starts_with(&prefix)) {
+            let _ = std::fs::remove_dir_all(entry.path());
         }
     }
-    std::fs::create_dir_all(parts)
-        .map_err(|e| Error::output(parts, format!("cannot create checkpoint folder: {e}")))?;
-    remove_temporaries(parts, &[]);
-    remove_temporaries(out, &["cells.parquet", "selection.json", "job.json"]);
-    let path = parts.join(MANIFEST);
+}
+
+/// Delete the whole checkpoint of `out`, shard folders included (a finished run or merge no
+/// longer needs it; `--force` of a whole run discards it).
+pub fn remove(out: &Path) -> Result<()> {
+    remove_folder(&out.join(PARTS_DIR))
+}
+
+/// Make the checkpoint folder of this run ([`folder`]) ready, after [`inspect`] accepted it
+/// (or with `force`): with `force` delete what is there first (a whole run: all of `parts/`;
+/// a shard: its own folder only, since the other shards may be running); create the folder;
+/// delete temporary files of killed writers (its parts, and for a whole run the result files
+/// in `out`); write the manifest unless the folder already has it, and the job file.
+pub fn open(out: &Path, shard: Option<Shard>, manifest: &Manifest, job: &Job, force: bool) -> Result<()> {
+    let dir = folder(out, shard);
+    match shard {
+        None => {
+            if force {
+                remove(out)?;
+            }
+            remove_deleted_leftovers(out, PARTS_DIR);
+        }
+        Some(s) => {
+            if force {
+                remove_folder(&dir)?;
+            }
+            remove_deleted_leftovers(&out.join(PARTS_DIR), &s.folder_name());
+        }
+    }
+    std::fs::create_dir_all(&dir).map_err(|e| Error::output(&dir, format!("cannot create checkpoint folder: {e}")))?;
+    remove_temporaries(&dir, &[]);
+    if shard.is_none() {
+        // A shard must not: a merge may be writing them (or another shard's run may).
+        remove_temporaries(out, &["cells.parquet", "selection.json", "job.json"]);
+    }
+    let path = dir.join(MANIFEST);
     if !path.exists() {
         export::json::write_json(&path, manifest)?;
     }
-    Ok(())
+    // Rewritten each time: the paths are the latest run's (the manifest, checked above, says
+    // the rest is the same job).
+    export::json::write_json(&dir.join(JOB_FILE), job)
+}
+
+/// The shard checkpoint folders in `parts`, ordered by (N, I). Other entries are ignored.
+pub fn shard_folders(parts: &Path) -> Result<Vec<(PathBuf, Shard)>> {
+    let Ok(entries) = std::fs::read_dir(parts) else { return Ok(Vec::new()) };
+    let mut found = Vec::new();
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::input(parts, format!("cannot list checkpoint: {e}")))?;
+        if let Some(s) = entry.file_name().to_str().and_then(Shard::from_folder_name)
+            && entry.path().is_dir()
+        {
+            found.push((entry.path(), s));
+        }
+    }
+    found.sort_by_key(|(_, s)| (s.count, s.index));
+    Ok(found)
+}
+
+/// [`inspect`] for a whole run: the rows of `<out>/parts` and of every shard folder in it
+/// (first row of each key; folders in the order of [`shard_folders`]). Parts are numbered on
+/// from the whole run's own folder.
+pub fn inspect_all(out: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
+    let parts = out.join(PARTS_DIR);
+    let mut all = inspect(&parts, now, plan)?;
+    let mut seen: HashSet<RowKey> = all.rows.iter().map(row_key).collect();
+    for (dir, _) in shard_folders(&parts)? {
+        let more = inspect(&dir, now, plan)?;
+        all.parts += more.parts;
+        all.duplicates += more.duplicates;
+        for row in more.rows {
+            if seen.insert(row_key(&row)) {
+                all.rows.push(row);
+            } else {
+                all.duplicates += 1;
+            }
+        }
+    }
+    Ok(all)
+}
+
+/// Everything the checkpoint folders of an output folder hold, for `oesweep merge`.
+#[derive(Debug)]
+pub struct Gathered {
+    /// The normalised job, read from a checkpoint folder's [`JOB_FILE`].
+    pub job: Job,
+    /// Its plan.
+    pub plan: Plan,
+    /// One row per key found, sorted as in `cells.parquet`.
+    pub rows: Vec<CellRow>,
+    /// The checkpoint folders read (the whole run's `parts/` first, then the shards') and how
+    /// many part files each held.
+    pub folders: Vec<(PathBuf, Option<Shard>, usize)>,
+    /// Rows found in more than one folder (identical but for `seconds`; kept once).
+    pub duplicates: usize,
+}
+
+fn read_json_file<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+    serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not a checkpoint file of oesweep: {e}")))
+}
+
+/// Read every checkpoint folder of `out` (writes nothing). All must belong to one job (the
+/// same manifest), written by this version of oesweep (a merge must not mix programs), and
+/// the job file must be the job of the manifest. A cell found in two folders (say, a shard run
+/// again with another N) must have the same row there but for `seconds`, else the folder is
+/// refused: the computation is deterministic, so a difference means the files are not what
+/// they claim to be.
+pub fn gather(out: &Path) -> Result<Gathered> {
+    let parts = out.join(PARTS_DIR);
+    if !parts.is_dir() {
+        return Err(Error::input(&parts, "no checkpoint to merge (no parts folder)"));
+    }
+    let mut dirs: Vec<(PathBuf, Option<Shard>)> = vec![(parts.clone(), None)];
+    dirs.extend(shard_folders(&parts)?.into_iter().map(|(d, s)| (d, Some(s))));
+    let Some(reference) = dirs.iter().map(|(d, _)| d).find(|d| d.join(MANIFEST).exists()) else {
+        return Err(Error::input(&parts, "holds no checkpoint manifest, so there is nothing to merge"));
+    };
+    let manifest: Manifest = read_json_file(&reference.join(MANIFEST))?;
+    let version = env!("CARGO_PKG_VERSION");
+    if manifest.oesweep_version != version {
+        return Err(Error::input(
+            reference,
+            format!(
+                "was written by oesweep {}, this is oesweep {version}: merge with that version",
+                manifest.oesweep_version
+            ),
+        ));
+    }
+    let job_path = reference.join(JOB_FILE);
+    let job: Job = read_json_file(&job_path)?;
+    if job_identity(&job).1 != manifest.job_sha256 {
+        return Err(Error::input(&job_path, "is not the job of the manifest next to it"));
+    }
+    let plan = Plan::from_normalised(&job);
+    let mut found: std::collections::HashMap<RowKey, (CellRow, usize)> = std::collections::HashMap::new();
+    let (mut folders, mut duplicates) = (Vec::new(), 0);
+    for (dir, shard) in dirs {
+        let existing = inspect(&dir, &manifest, &plan)?;
+        duplicates += existing.duplicates;
+        for row in existing.rows {
+            match found.get(&row_key(&row)) {
+                None => {
+                    found.insert(row_key(&row), (row, folders.len()));
+                }
+                Some((first, at)) => {
+                    let same = CellRow { seconds: 0.0, ..row.clone() } == CellRow { seconds: 0.0, ..first.clone() };
+                    if !same {
+                        return Err(Error::input(
+                            &dir,
+                            format!(
+                                "{} row nb={} nf={} k_index={:?} differs from the one in {}",
+                                row.method.as_str(),
+                                row.nb,
+                                row.nf,
+                                row.k_index,
+                                folders.get(*at).map_or(dir.clone(), |(d, _, _): &(PathBuf, _, _)| d.clone()).display()
+                            ),
+                        ));
+                    }
+                    duplicates += 1;
+                }
+            }
+        }
+        folders.push((dir, shard, existing.parts));
+    }
+    let mut rows: Vec<CellRow> = found.into_values().map(|(r, _)| r).collect();
+    crate::sweep::sort_rows(&mut rows);
+    Ok(Gathered { job, plan, rows, folders, duplicates })
 }
 
 /// What the writer saved, reported by [`Writer::finish`].

@@ -12,12 +12,14 @@ use crate::job::{self, Inputs, ValidJob};
 use crate::plan::Plan;
 use crate::progress::Progress;
 use crate::reduce::{self, ReduceOptions};
+use crate::shard::{self, Shard};
 use crate::simulate;
 use crate::spectral::SpectralEstimate;
 use crate::spectral::{self, WelchOptions};
 use crate::sweep::{self, Context};
 use crate::table::{CellRow, Method};
 use clap::{Args, Parser, Subcommand};
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -40,6 +42,47 @@ pub enum Command {
     Run(RunArgs),
     /// Write report.html with figures for a finished sweep's output folder.
     Report(ReportArgs),
+    /// Merge the shards (`run --shard I/N`) in an output folder into the result files.
+    Merge(MergeArgs),
+    /// Submit a job to Slurm: an array job of N shards, then a merge job that waits for them.
+    Slurm(SlurmArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct MergeArgs {
+    /// Output folder the shards wrote into (the job's `output`).
+    pub folder: PathBuf,
+    /// Merge even when some cells are missing (the checkpoint is then kept).
+    #[arg(long)]
+    pub partial: bool,
+    /// Also write the HTML report (see `oesweep report`).
+    #[arg(long)]
+    pub report: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct SlurmArgs {
+    /// Job file (JSON).
+    pub job: PathBuf,
+    /// Number of shards (array tasks).
+    #[arg(long)]
+    pub shards: usize,
+    /// Folder holding your own `sweep.sbatch` and `merge.sbatch` [default: the templates of
+    /// jobs/slurm/ built into oesweep, written to <output>/slurm/].
+    #[arg(long, value_name = "DIR")]
+    pub sbatch: Option<PathBuf>,
+    /// CPUs per array task (sbatch --cpus-per-task; each shard uses that many threads).
+    #[arg(long)]
+    pub cpus_per_task: Option<usize>,
+    /// Extra option for both sbatch calls, e.g. --sbatch-arg=--partition=long (repeatable).
+    #[arg(long, value_name = "OPTION", allow_hyphen_values = true)]
+    pub sbatch_arg: Vec<String>,
+    /// Let the merge job write the HTML report too.
+    #[arg(long)]
+    pub report: bool,
+    /// Print the sbatch commands instead of running them.
+    #[arg(long)]
+    pub dry_run: bool,
 }
 
 #[derive(Args, Debug)]
@@ -52,6 +95,9 @@ pub struct ReportArgs {
 pub struct PlanArgs {
     /// Job file (JSON).
     pub job: PathBuf,
+    /// Also print how `run --shard I/N` splits the job into N shards.
+    #[arg(long, value_name = "N")]
+    pub shards: Option<usize>,
 }
 
 #[derive(Args, Debug)]
@@ -74,6 +120,10 @@ pub struct RunArgs {
     /// Save finished cells to the checkpoint at least this often (and every 500 cells).
     #[arg(long, value_name = "SECONDS", default_value_t = checkpoint::BATCH_SECONDS)]
     pub checkpoint_every: f64,
+    /// Run only shard I (0-based) of N: a share of the order pairs, saved in
+    /// <output>/parts/shard-I-of-N/ and not merged (see `oesweep merge`).
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<Shard>,
 }
 
 #[derive(Args, Debug)]
@@ -181,6 +231,8 @@ pub fn run(cli: Cli) -> Result<u8> {
             println!("wrote {}", page.display());
             Ok(0)
         }
+        Command::Merge(a) => run_merge(&a),
+        Command::Slurm(a) => run_slurm(&a),
     }
 }
 
@@ -390,7 +442,7 @@ fn prepare(path: &Path) -> Result<Prepared> {
     let spectral = match job.job.band_hz {
         Some([lo, hi]) => {
             let s = spectral::welch(&inputs.est.u, &inputs.est.y, job.ts(), &WelchOptions::default())
-                .map_err(|e| Error::input(&job.job.data.path, format!("spectral estimate: {e}")))?;
+                .map_err(|e| Error::input(&job.job.data.path, e.to_string()))?;
             let bins = s.band(lo, hi);
             if bins.is_empty() {
                 return Err(Error::input(
@@ -432,7 +484,34 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
     println!("start      {}", j.job.start.as_str());
     println!("ranking    by {:?} fit", reduce::choose_basis(p.inputs.val.is_some(), p.spectral.is_some()));
     println!("output     {}", j.output().display());
+    if let Some(n) = a.shards {
+        if n == 0 {
+            return Err(Error::Invalid("--shards must be at least 1".into()));
+        }
+        print_layout(&p.plan, n);
+    }
     Ok(0)
+}
+
+/// The shard layout of `oesweep plan --shards N`: per shard its pairs, cells and estimated cost.
+fn print_layout(plan: &Plan, n: usize) {
+    let layout = shard::layout(plan, n);
+    let total: f64 = (0..plan.pairs.len()).map(|p| shard::pair_cost(plan, p)).sum();
+    println!("shards     {n} (run each with `oesweep run JOB --shard I/{n}`, then `oesweep merge OUTPUT`)");
+    println!("{:>7} {:>6} {:>7} {:>11} {:>7}  order pairs (nB,nF)", "shard", "pairs", "cells", "est. cost", "share");
+    for (i, pairs) in layout.iter().enumerate() {
+        let cost: f64 = pairs.iter().map(|&p| shard::pair_cost(plan, p)).sum();
+        let list: Vec<String> = pairs.iter().map(|&p| format!("({},{})", plan.pairs[p].nb, plan.pairs[p].nf)).collect();
+        println!(
+            "{:>7} {:>6} {:>7} {:>11} {:>6.1}%  {}",
+            format!("{i}/{n}"),
+            pairs.len(),
+            pairs.len() * plan.ks.len(),
+            cost,
+            100.0 * cost / total.max(1.0),
+            list.join(" ")
+        );
+    }
 }
 
 /// `job.json` in the output folder: the normalised job and the program that ran it.
@@ -443,10 +522,50 @@ struct JobAsRun<'a> {
     job: &'a job::Job,
 }
 
+/// The result files of a complete (or `--partial`) table: `cells.parquet`, `selection.json`,
+/// `job.json`. Returns the picks.
+fn write_results(out: &Path, job: &job::Job, rows: &[CellRow]) -> Result<reduce::Selection> {
+    let sel_opts = ReduceOptions {
+        basis: reduce::choose_basis(job.validation.is_some(), job.band_hz.is_some()),
+        min_tolerance: job.selection.min_tolerance,
+        fit_tolerance: job.selection.fit_tolerance,
+    };
+    let selection = reduce::select(rows, &sel_opts);
+    export::parquet::write_cells(&out.join("cells.parquet"), rows)?;
+    export::json::write_json(&out.join("selection.json"), &selection)?;
+    export::json::write_json(&out.join("job.json"), &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job })?;
+    Ok(selection)
+}
+
+fn print_picks(selection: &reduce::Selection) {
+    for (label, pick) in [("M1 (W minima)  ", &selection.m1), ("M2 (L1C minima)", &selection.m2)] {
+        match pick {
+            Some(m) => println!(
+                "{label} OE({}, {}) k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  fit = {}",
+                m.model.nb,
+                m.model.nf,
+                m.model.k,
+                m.model.gamma,
+                m.model.criterion,
+                100.0 * m.model.l1c,
+                opt_pct(Some(m.model.score))
+            ),
+            None => println!("{label} none (no usable cell)"),
+        }
+    }
+}
+
+fn failed_cells(rows: &[CellRow]) -> usize {
+    rows.iter().filter(|r| r.method == Method::Huber && !r.ok()).count()
+}
+
 /// `oesweep run`: validate everything (job, data, an existing checkpoint) before writing
-/// anything; resume from `<output>/parts` when it holds an interrupted run of this job (see
-/// [`checkpoint`]); run the remaining cells while the checkpoint writer saves them; on a signal
-/// stop, save and return 130; otherwise merge, reduce, write the results and delete the parts.
+/// anything; resume from the checkpoint when it holds an interrupted run of this job (see
+/// [`checkpoint`]; a whole run also takes the cells of shard folders); run the remaining cells
+/// while the checkpoint writer saves them; on a signal stop, save and return 130. A whole run
+/// then merges, reduces, writes the results and deletes the parts; a shard (`--shard I/N`,
+/// only its share of the plan, see [`shard`]) stops once its rows are saved, for `oesweep
+/// merge` to combine.
 fn run_job(a: &RunArgs) -> Result<u8> {
     if !(a.checkpoint_every.is_finite() && a.checkpoint_every > 0.0) {
         return Err(Error::Invalid(format!(
@@ -454,17 +573,29 @@ fn run_job(a: &RunArgs) -> Result<u8> {
             a.checkpoint_every
         )));
     }
+    if a.shard.is_some() && a.report {
+        return Err(Error::Invalid(
+            "--report needs the merged table: use `oesweep merge OUTPUT --report` once all shards are done".into(),
+        ));
+    }
     let p = prepare(&a.job)?;
     let out = p.job.output().to_path_buf();
-    let parts = out.join(checkpoint::PARTS_DIR);
+    let (plan, label) = match a.shard {
+        Some(s) => (shard::plan_of(&p.plan, s).0, format!("{} shard {s}", p.job.job.name)),
+        None => (p.plan.clone(), p.job.job.name.clone()),
+    };
+    let parts = checkpoint::folder(&out, a.shard);
     let manifest = Manifest::of_job(&p.job)?;
     // A checkpoint of another job is bad input too: refused before anything is written.
-    let existing =
-        if a.force { checkpoint::Existing::default() } else { checkpoint::inspect(&parts, &manifest, &p.plan)? };
+    let existing = match (a.force, a.shard) {
+        (true, _) => checkpoint::Existing::default(),
+        (false, Some(_)) => checkpoint::inspect(&parts, &manifest, &plan)?,
+        (false, None) => checkpoint::inspect_all(&out, &manifest, &plan)?,
+    };
 
     std::fs::create_dir_all(&out).map_err(|e| Error::output(&out, format!("cannot create output folder: {e}")))?;
-    checkpoint::open(&out, &manifest, a.force)?;
-    let (pairs, cells) = (p.plan.pairs.len(), p.plan.n_cells());
+    checkpoint::open(&out, a.shard, &manifest, &p.job.job, a.force)?;
+    let (pairs, cells) = (plan.pairs.len(), plan.n_cells());
     let resumed_huber = existing.huber_rows();
     let resumed_rows = existing.rows.len();
     if resumed_rows > 0 && !a.quiet {
@@ -504,13 +635,14 @@ fn run_job(a: &RunArgs) -> Result<u8> {
             let _ = tx.send(row.clone());
         };
         let control = sweep::Control { done: existing.rows, on_row: &on_row, stop: signals.flag() };
-        sweep::run(&p.plan, &ctx, a.threads, &progress, control)
+        sweep::run(&plan, &ctx, a.threads, &progress, control)
     };
     progress.finish();
     let saved = writer.finish();
     if let Some(e) = &saved.error {
         eprintln!("warning: {} finished rows could not be saved to the checkpoint: {e}", saved.unsaved);
     }
+    let shard_arg = a.shard.map_or(String::new(), |s| format!(" --shard {s}"));
     if outcome.interrupted {
         let done_huber = outcome.rows.iter().filter(|r| r.method == Method::Huber).count();
         eprintln!(
@@ -519,26 +651,37 @@ fn run_job(a: &RunArgs) -> Result<u8> {
             outcome.computed,
             parts.display()
         );
-        eprintln!("to resume, run `oesweep run {}` again (with --force to start over instead)", a.job.display());
+        eprintln!(
+            "to resume, run `oesweep run {}{shard_arg}` again (with --force to start over instead)",
+            a.job.display()
+        );
         return Ok(130);
     }
-
-    let basis = reduce::choose_basis(p.inputs.val.is_some(), p.spectral.is_some());
-    let sel_opts = ReduceOptions {
-        basis,
-        min_tolerance: p.job.job.selection.min_tolerance,
-        fit_tolerance: p.job.job.selection.fit_tolerance,
-    };
-    let selection = reduce::select(&outcome.rows, &sel_opts);
-    export::parquet::write_cells(&out.join("cells.parquet"), &outcome.rows)?;
-    export::json::write_json(&out.join("selection.json"), &selection)?;
-    export::json::write_json(
-        &out.join("job.json"),
-        &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job: &p.job.job },
-    )?;
-
     let failed = outcome.failed_cells();
-    println!("{}: {} cells ({} failed) + {} least-squares fits", p.job.job.name, cells, failed, pairs);
+    let rate = outcome.computed as f64 / outcome.seconds.max(1e-9);
+
+    if let Some(s) = a.shard {
+        // The checkpoint is this shard's only result: rows that did not reach it are lost.
+        if let Some(e) = saved.error {
+            return Err(Error::output(
+                &parts,
+                format!("{} finished rows could not be saved ({e}); run the shard again to redo them", saved.unsaved),
+            ));
+        }
+        println!("{label}: {cells} cells ({failed} failed) + {pairs} least-squares fits, saved in {}", parts.display());
+        if resumed_rows > 0 {
+            println!(
+                "{} cells resumed from the checkpoint, {} computed in this run",
+                outcome.resumed, outcome.computed
+            );
+        }
+        println!("wall time {:.2} s, {rate:.1} cells/s", outcome.seconds);
+        println!("when all {} shards are done: oesweep merge {}", s.count, out.display());
+        return Ok(if failed > 0 { 1 } else { 0 });
+    }
+
+    let selection = write_results(&out, &p.job.job, &outcome.rows)?;
+    println!("{label}: {cells} cells ({failed} failed) + {pairs} least-squares fits");
     if resumed_rows > 0 {
         println!(
             "{} cells and {} least-squares fits resumed from the checkpoint, {} cells computed in this run",
@@ -547,22 +690,8 @@ fn run_job(a: &RunArgs) -> Result<u8> {
             outcome.computed
         );
     }
-    println!("wall time {:.2} s, {:.1} cells/s", outcome.seconds, outcome.computed as f64 / outcome.seconds.max(1e-9));
-    for (label, pick) in [("M1 (W minima)  ", &selection.m1), ("M2 (L1C minima)", &selection.m2)] {
-        match pick {
-            Some(m) => println!(
-                "{label} OE({}, {}) k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  fit = {}",
-                m.model.nb,
-                m.model.nf,
-                m.model.k,
-                m.model.gamma,
-                m.model.criterion,
-                100.0 * m.model.l1c,
-                opt_pct(Some(m.model.score))
-            ),
-            None => println!("{label} none (no usable cell)"),
-        }
-    }
+    println!("wall time {:.2} s, {rate:.1} cells/s", outcome.seconds);
+    print_picks(&selection);
     println!("results in {}", out.display());
     // cells.parquet is complete: the checkpoint has served. If this fails, a rerun finds every
     // cell done and merges again.
@@ -574,4 +703,184 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         println!("report in {}", page.display());
     }
     Ok(if failed > 0 { 1 } else { 0 })
+}
+
+/// `oesweep merge`: read every checkpoint folder of an output folder (shards, or an
+/// interrupted whole run), check that together they hold every cell of the job exactly once,
+/// and write the result files exactly as a whole run does (same rows, same order, same
+/// reducer). Missing cells: list them and exit 1 without writing, unless `--partial`. A
+/// complete merge deletes the checkpoint, like a whole run; a folder already merged is left
+/// as it is (so a merge job that runs twice succeeds twice).
+fn run_merge(a: &MergeArgs) -> Result<u8> {
+    let out = &a.folder;
+    if !out.is_dir() {
+        return Err(Error::input(out, "not a folder"));
+    }
+    let merged = ["cells.parquet", "selection.json", "job.json"].iter().all(|f| out.join(f).is_file());
+    if !out.join(checkpoint::PARTS_DIR).exists() && merged {
+        println!("{}: already merged (no checkpoint left), nothing to do", out.display());
+    } else {
+        let g = checkpoint::gather(out)?;
+        if g.duplicates > 0 {
+            eprintln!("note: {} cells were saved twice (identical rows); each is kept once", g.duplicates);
+        }
+        let missing = shard::missing(&g.plan, &g.rows);
+        let (pairs, cells) = (g.plan.pairs.len(), g.plan.n_cells());
+        if !missing.is_empty() {
+            eprintln!(
+                "{}: {} of {cells} cells and {} of {pairs} least-squares fits are missing:",
+                out.display(),
+                missing.cells,
+                missing.ls
+            );
+            for line in missing.lines(&g.plan, 20) {
+                eprintln!("  {line}");
+            }
+            // Name the shards to rerun when the folders say how the job was split.
+            let counts: BTreeSet<usize> = g.folders.iter().filter_map(|(_, s, _)| s.map(|s| s.count)).collect();
+            if let [n] = counts.iter().copied().collect::<Vec<_>>()[..] {
+                let layout = shard::layout(&g.plan, n);
+                let owners: Vec<usize> = (0..n)
+                    .filter(|&s| layout[s].iter().any(|p| missing.pairs.iter().any(|(q, _, _)| q == p)))
+                    .collect();
+                eprintln!(
+                    "  they belong to shard {} of {n}: run `oesweep run JOB --shard I/{n}` for each",
+                    shard::ranges(&owners)
+                );
+            }
+            if !a.partial {
+                eprintln!(
+                    "nothing written; rerun the missing shards and merge again, or merge what there is with --partial"
+                );
+                return Ok(1);
+            }
+        }
+        let selection = write_results(out, &g.job, &g.rows)?;
+        let failed = failed_cells(&g.rows);
+        let huber = g.rows.iter().filter(|r| r.method == Method::Huber).count();
+        let read: Vec<String> = g
+            .folders
+            .iter()
+            .filter(|(_, _, n)| *n > 0)
+            .map(|(d, _, n)| format!("{} ({n} parts)", d.file_name().unwrap_or_default().to_string_lossy()))
+            .collect();
+        println!("merged {}", read.join(", "));
+        println!(
+            "{}: {huber} of {cells} cells ({failed} failed) + {} of {pairs} least-squares fits",
+            g.job.name,
+            g.rows.len() - huber
+        );
+        print_picks(&selection);
+        println!("results in {}", out.display());
+        if missing.is_empty() {
+            if let Err(e) = checkpoint::remove(out) {
+                eprintln!("warning: {e}");
+            }
+        } else {
+            println!("partial merge: the checkpoint is kept; merge again once the missing cells are done");
+        }
+    }
+    if a.report {
+        let page = crate::report::write_report(out)?;
+        println!("report in {}", page.display());
+    }
+    let rows = export::parquet::read_cells(&out.join("cells.parquet"))?;
+    Ok(if failed_cells(&rows) > 0 { 1 } else { 0 })
+}
+
+/// The sbatch templates built into the binary (the files of `jobs/slurm/`), so that
+/// `oesweep slurm` works from an installed binary without the source tree.
+const SWEEP_SBATCH: &str = include_str!("../jobs/slurm/sweep.sbatch");
+const MERGE_SBATCH: &str = include_str!("../jobs/slurm/merge.sbatch");
+
+/// `oesweep slurm`: validate the job, then submit the array job of N shards and a merge job
+/// that depends on it (`afterok`), and print both job ids. Slurm does the scheduling, retries
+/// and accounting; this only spares the user two sbatch lines and the dependency id.
+fn run_slurm(a: &SlurmArgs) -> Result<u8> {
+    if a.shards == 0 {
+        return Err(Error::Invalid("--shards must be at least 1".into()));
+    }
+    if a.cpus_per_task == Some(0) {
+        return Err(Error::Invalid("--cpus-per-task must be at least 1".into()));
+    }
+    // Bad input is found here, not in N array tasks an hour later in the queue.
+    let p = prepare(&a.job)?;
+    let out = p.job.output().to_path_buf();
+    let job_file = a.job.canonicalize().map_err(|e| Error::input(&a.job, format!("cannot resolve: {e}")))?;
+    let logs = out.join("slurm");
+    let (sweep_script, merge_script) = match &a.sbatch {
+        Some(dir) => {
+            let (s, m) = (dir.join("sweep.sbatch"), dir.join("merge.sbatch"));
+            for f in [&s, &m] {
+                if !f.is_file() {
+                    return Err(Error::input(
+                        f,
+                        "not found (--sbatch names a folder with sweep.sbatch and merge.sbatch)",
+                    ));
+                }
+            }
+            (s, m)
+        }
+        None => (logs.join("sweep.sbatch"), logs.join("merge.sbatch")),
+    };
+    let exe = std::env::current_exe().map_err(|e| Error::Invalid(format!("cannot locate the oesweep binary: {e}")))?;
+    let mut sweep_cmd: Vec<String> = vec![
+        "--parsable".into(),
+        format!("--array=0-{}", a.shards - 1),
+        format!("--job-name=oesweep-{}", p.job.job.name.replace(char::is_whitespace, "_")),
+        format!("--output={}", logs.join("sweep-%A_%a.out").display()),
+    ];
+    if let Some(c) = a.cpus_per_task {
+        sweep_cmd.push(format!("--cpus-per-task={c}"));
+    }
+    sweep_cmd.extend(a.sbatch_arg.iter().cloned());
+    sweep_cmd.extend([sweep_script.display().to_string(), job_file.display().to_string(), a.shards.to_string()]);
+    let mut merge_cmd: Vec<String> = vec![
+        "--parsable".into(),
+        format!("--job-name=oesweep-{}-merge", p.job.job.name.replace(char::is_whitespace, "_")),
+        format!("--output={}", logs.join("merge-%j.out").display()),
+    ];
+    merge_cmd.extend(a.sbatch_arg.iter().cloned());
+    merge_cmd.extend([merge_script.display().to_string(), out.display().to_string()]);
+    if a.report {
+        merge_cmd.push("--report".into());
+    }
+    if a.dry_run {
+        println!("OESWEEP={} sbatch {}", exe.display(), sweep_cmd.join(" "));
+        println!("OESWEEP={} sbatch --dependency=afterok:<sweep job id> {}", exe.display(), merge_cmd.join(" "));
+        return Ok(0);
+    }
+    // Slurm opens the log files there, so the folder must exist before the tasks start.
+    std::fs::create_dir_all(&logs).map_err(|e| Error::output(&logs, format!("cannot create: {e}")))?;
+    if a.sbatch.is_none() {
+        for (path, text) in [(&sweep_script, SWEEP_SBATCH), (&merge_script, MERGE_SBATCH)] {
+            std::fs::write(path, text).map_err(|e| Error::output(path, format!("cannot write: {e}")))?;
+        }
+    }
+    let submit = |args: &[String]| -> Result<String> {
+        let o = std::process::Command::new("sbatch")
+            .args(args)
+            .env("OESWEEP", &exe)
+            .output()
+            .map_err(|e| Error::Invalid(format!("cannot run sbatch: {e} (is this a Slurm login node?)")))?;
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        // --parsable prints `id` or `id;cluster`.
+        let id = stdout.trim().split(';').next().unwrap_or("").to_string();
+        if !o.status.success() || id.is_empty() || !id.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(Error::Invalid(format!(
+                "sbatch {} failed: {}{}",
+                args.join(" "),
+                String::from_utf8_lossy(&o.stderr).trim(),
+                stdout.trim()
+            )));
+        }
+        Ok(id)
+    };
+    let sweep_id = submit(&sweep_cmd)?;
+    merge_cmd.insert(1, format!("--dependency=afterok:{sweep_id}"));
+    let merge_id = submit(&merge_cmd)?;
+    println!("sweep job {sweep_id} (array of {} shards)", a.shards);
+    println!("merge job {merge_id} (starts when every shard succeeded)");
+    println!("results in {}, Slurm logs in {}", out.display(), logs.display());
+    Ok(0)
 }

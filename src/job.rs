@@ -219,9 +219,17 @@ fn resolve(base: &Path, p: &Path) -> PathBuf {
 /// Read and validate a job file. Does not touch the data files (see [`load_inputs`]).
 pub fn load(path: &Path) -> Result<ValidJob> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read job file: {e}")))?;
+    // A byte-order mark (written by some Windows editors) is not JSON but is no error either.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    // serde would read a top-level array positionally and complain about its first element.
+    if let Ok(v) = serde_json::from_str::<serde_json::Value>(text)
+        && !v.is_object()
+    {
+        return Err(Error::input(path, "invalid job: the file must hold one JSON object { ... }"));
+    }
     // serde quotes unknown keys and variants verbatim: escape control characters so the
     // message stays the one line the CLI promises.
-    let job: Job = serde_json::from_str(&text)
+    let job: Job = serde_json::from_str(text)
         .map_err(|e| Error::input(path, format!("invalid job: {}", data::one_line(&e.to_string()))))?;
     validate(path, job)
 }
@@ -432,5 +440,18 @@ mod tests {
         assert!(k.windows(2).all(|w| w[1] > w[0]));
         let lin = k_values(&KGrid::Range(KRange { from: 0.1, to: 1.0, count: 10, spacing: Spacing::Linear }));
         assert_eq!(lin[3], 0.1 + 0.9 * (3.0 / 9.0));
+    }
+
+    #[test]
+    fn byte_order_mark_is_accepted_and_output_probe_leaves_no_trace() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("job.json");
+        let job = r#"{"name": "x", "data": {"path": "d.csv", "ts": 1}, "grid": {"nb": [1, 1], "nf": [0, 0], "k": [1]},
+            "output": "a/b"}"#;
+        std::fs::write(&p, format!("\u{feff}{job}")).unwrap();
+        let vj = load(&p).unwrap();
+        assert!(vj.output().ends_with("a/b"));
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(left, vec![std::ffi::OsString::from("job.json")]);
     }
 }

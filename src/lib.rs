@@ -16,6 +16,7 @@ pub mod plan;
 pub mod progress;
 pub mod reduce;
 pub mod report;
+pub mod shard;
 pub mod simulate;
 pub mod spectral;
 pub mod sweep;

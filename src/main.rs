@@ -9,7 +9,13 @@ fn main() -> ExitCode {
     match oesweep::cli::run(cli) {
         Ok(code) => ExitCode::from(code),
         Err(e) => {
-            eprintln!("error: {e}");
+            // One line, whatever the paths contain: control characters are escaped.
+            let msg: String = e
+                .to_string()
+                .chars()
+                .map(|c| if c.is_control() { c.escape_default().to_string() } else { c.to_string() })
+                .collect();
+            eprintln!("error: {msg}");
             ExitCode::from(if e.is_bad_input() { 2 } else { 1 })
         }
     }

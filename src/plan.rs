@@ -4,7 +4,7 @@
 //! The least-squares phase depends only on the pair (METHOD.md 5), so the pair is the unit
 //! that owns it and the cells of a pair share its result.
 
-use crate::job::{StartStrategy, ValidJob};
+use crate::job::{self, Job, StartStrategy, ValidJob};
 
 /// An order pair (nB, nF).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -32,6 +32,22 @@ impl Plan {
     pub fn from_job(job: &ValidJob) -> Plan {
         let pairs = job.nb.iter().flat_map(|&nb| job.nf.iter().map(move |&nf| Pair { nb, nf })).collect();
         Plan { delay: job.job.delay, pairs, ks: job.ks.clone(), start: job.job.start }
+    }
+
+    /// The plan of a job that was validated before (the job file a run leaves in its
+    /// checkpoint, read back by `oesweep merge`): the same plan as [`Plan::from_job`] gave then,
+    /// without the checks and the file system access of validation.
+    pub fn from_normalised(job: &Job) -> Plan {
+        let ([b0, b1], [f0, f1]) = (job.grid.nb, job.grid.nf);
+        let pairs = (b0..=b1).flat_map(|nb| (f0..=f1).map(move |nf| Pair { nb, nf })).collect();
+        Plan { delay: job.delay, pairs, ks: job::k_values(&job.grid.k), start: job.start }
+    }
+
+    /// This plan restricted to some of its pairs (indices into `pairs`, in the order given):
+    /// a shard's plan ([`crate::shard`]). A pair's cells are computed exactly as in the full
+    /// plan, since nothing in a cell depends on the other pairs.
+    pub fn with_pairs(&self, pairs: &[usize]) -> Plan {
+        Plan { pairs: pairs.iter().map(|&p| self.pairs[p]).collect(), ..self.clone() }
     }
 
     pub fn n_cells(&self) -> usize {

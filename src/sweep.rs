@@ -257,6 +257,21 @@ fn run_in_pool(
     rows
 }
 
+/// Test hook: `OESWEEP_FAILPOINT=panic:NB,NF,K_INDEX` makes that Huber cell panic inside its
+/// worker, as a bug in the numerics would, so the fault isolation can be tested end to end
+/// (tests/fault_isolation.rs). Read once; unset in normal use.
+fn failpoint(nb: usize, nf: usize, k_index: usize) {
+    static TARGET: std::sync::OnceLock<Option<(usize, usize, usize)>> = std::sync::OnceLock::new();
+    let target = TARGET.get_or_init(|| {
+        let v = std::env::var("OESWEEP_FAILPOINT").ok()?;
+        let mut it = v.strip_prefix("panic:")?.split(',').map(|x| x.trim().parse::<usize>().ok());
+        Some((it.next()??, it.next()??, it.next()??))
+    });
+    if *target == Some((nb, nf, k_index)) {
+        panic!("failpoint OESWEEP_FAILPOINT hit at OE({nb},{nf}) k index {k_index}");
+    }
+}
+
 /// One Huber cell of the pair whose least-squares phase is `ls`, started from theta_LS and/or
 /// `neighbour` as the plan's start strategy says.
 fn huber_cell(
@@ -281,6 +296,7 @@ fn huber_cell(
     let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay: plan.delay };
     let t = Instant::now();
     let run = catch_unwind(AssertUnwindSafe(|| {
+        failpoint(pair.nb, pair.nf, cell.k_index);
         let mut fit_from = |start: &[f64]| estimate::fit_huber(&prob, *sigma, k, start, judge, &ctx.solver, ws);
         // theta_LS, then the pair's extra starts; the lowest criterion wins, ties the earlier.
         let mut from_ls = || {

@@ -1,9 +1,524 @@
-//! The review report of a finished sweep (being written).
+//! The review report of a finished sweep: `report.html` and SVG figures beside it.
+//!
+//! Engineers choose a model by looking at the curves the paper looks at (Corbier et al. 2012,
+//! METHOD.md 7), not only at the two picks in `selection.json`. [`write_report`] reads a results
+//! folder (`cells.parquet`, `selection.json`, `job.json`), re-reads the data files `job.json`
+//! names, and writes one page with these figures:
+//!
+//! 1. **W versus nF, one line per nB, at the M1 pick's k** (paper Fig. 10). The M1-style pick is
+//!    the best-fitting local minimum over nF of these curves; the rings show every local minimum
+//!    (the reducer's rule and tolerance), so one sees whether the pick is a clear minimum or one of
+//!    many on a flat curve. W is drawn on a log axis when it spans more than a factor 20.
+//! 2. **L1C versus nF at the M2 pick's k** (paper Fig. 12), the same for the M2-style pick. On data
+//!    with a fixed share of spikes L1C is flat at small k (METHOD.md 8): the figure shows when
+//!    L1C cannot rank the orders.
+//! 3. **Heat maps over (nB, nF) of W, L1C and the ranking fit** (the `basis` of `selection.json`:
+//!    `fit_val`, `fit_band` or `fit`), for every k when there are at most six, else six spread
+//!    over the grid plus the picks' k. They show the whole grid at once: where the good orders
+//!    lie, and which cells failed (grey crosses). The picks are outlined. Colour scales are per
+//!    panel, bright meaning good on all three (low W, low L1C, high fit), bounded at the 90th (W)
+//!    or 10th (fit) percentile so that a few bad cells do not wash out the rest; the values are
+//!    printed in the cells when they fit.
+//! 4. **How the picks move with k**: the M1 and M2 rules applied to each k alone (via
+//!    [`crate::reduce::select`] on that k's rows), their orders and fit against k. A model whose
+//!    orders hold over a range of k is a robust choice; one that jumps is sensitive to gamma.
+//! 5. **Bode magnitude and phase of each pick against the Welch estimate** of the estimation
+//!    record (the estimate `fit_band` is computed against, [`crate::spectral::WelchOptions`]
+//!    default), the fit band shaded, the coherence below (paper Figs. 11 and 13). The question is
+//!    whether the model follows the data in the band; the coherence says where the estimate
+//!    itself can be trusted. The estimate's phase is drawn within ±180° of the model's.
+//! 6. **Residual histograms** of the least-squares fit of the M2 pick's orders and of the M2 pick
+//!    (paper Fig. 9), with ±gamma marked and the Gaussian of the least-squares sigma: the
+//!    least-squares residuals are far from Gaussian, which is the paper's case for Huber's
+//!    criterion; samples beyond ±gamma are the L1 part.
+//! 7. **Simulated output of the least-squares model and of the M2 pick against the measured
+//!    output**, first 500 samples of the estimation record and of the validation record when there
+//!    is one (paper Fig. 14), with the errors y - ŷ below: the outputs overlap at this scale, the
+//!    errors show how much the spikes pulled the least-squares model and not the Huber model.
+//!
+//! and tables: the picks with gamma, sigma, W, L1C, the three fits, pole radius and convergence,
+//! the least-squares fits of the same orders, the parameters b and f (paper Tables 2 and 3), the
+//! reducer's rule sentence and best candidates, and links to the result files.
+//!
+//! The figures are SVG files named `report-*.svg` beside `report.html`; the page links them by
+//! relative paths and loads nothing from the network, so the folder can be opened offline,
+//! moved or archived. Each file is written atomically, the page last, and `report-*.svg` files
+//! of an earlier report that this one does not write are removed.
+//!
+//! A missing or partial folder (no `cells.parquet`, `selection.json` or `job.json`) or a data file
+//! that is gone is an [`Error::Input`] naming the missing file.
 
+mod figures;
+mod html;
+mod plot;
+
+use crate::data::{self, Record};
 use crate::error::{Error, Result};
+use crate::export::parquet::read_cells;
+use crate::export::write_atomically;
+use crate::job::{KGrid, k_values};
+use crate::reduce::{Candidate, Selection};
+use crate::spectral::{WelchOptions, welch};
+use crate::table::{CellRow, Method};
+use figures::{Curve, Figure, Picked};
+use html::{Section, esc};
+use serde::Deserialize;
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
+
+/// Files a finished sweep leaves in its folder.
+const REQUIRED: [&str; 3] = ["cells.parquet", "selection.json", "job.json"];
+/// Prefix of the figure files, so a new report can remove the figures of an old one.
+const FIGURE_PREFIX: &str = "report-";
+/// Samples shown in the simulated-output figures: a readable window of the record.
+const OUTPUT_WINDOW: usize = 500;
+/// Largest number of k values with a heat-map figure (besides the picks' own k).
+const MAX_HEAT_MAPS: usize = 6;
+
+/// The parts of `job.json` the report uses. Deliberately tolerant (no `deny_unknown_fields`):
+/// `job.json` carries extra fields such as the program version.
+#[derive(Deserialize)]
+struct JobInfo {
+    name: String,
+    #[serde(default)]
+    oesweep_version: Option<String>,
+    data: DataInfo,
+    #[serde(default)]
+    validation: Option<DataInfo>,
+    grid: GridInfo,
+    #[serde(default)]
+    band_hz: Option<[f64; 2]>,
+    #[serde(default)]
+    start: Option<String>,
+}
+
+#[derive(Deserialize)]
+struct DataInfo {
+    path: PathBuf,
+    #[serde(default = "default_u")]
+    u: String,
+    #[serde(default)]
+    y: Option<String>,
+    #[serde(default)]
+    ts: Option<f64>,
+}
+
+fn default_u() -> String {
+    "u".into()
+}
+
+#[derive(Deserialize)]
+struct GridInfo {
+    nb: [usize; 2],
+    nf: [usize; 2],
+    k: KGrid,
+}
+
+/// Everything the report is drawn from.
+struct Sweep {
+    folder: PathBuf,
+    rows: Vec<CellRow>,
+    selection: Selection,
+    job: JobInfo,
+    ks: Vec<f64>,
+    ts: f64,
+    est: Record,
+    val: Option<Record>,
+}
+
+impl Sweep {
+    fn load(folder: &Path) -> Result<Sweep> {
+        if !folder.is_dir() {
+            return Err(Error::input(folder, "no such results folder (`oesweep run JOB` writes one)"));
+        }
+        let missing: Vec<&str> = REQUIRED.iter().copied().filter(|f| !folder.join(f).is_file()).collect();
+        if let Some(first) = missing.first() {
+            return Err(Error::input(
+                folder.join(first),
+                format!(
+                    "missing: a finished sweep folder holds {}; absent here: {} (`oesweep run JOB` writes them)",
+                    REQUIRED.join(", "),
+                    missing.join(", ")
+                ),
+            ));
+        }
+        let rows = read_cells(&folder.join("cells.parquet"))?;
+        let selection: Selection = read_json(&folder.join("selection.json"))?;
+        let job_path = folder.join("job.json");
+        let mut job: JobInfo = read_json(&job_path)?;
+        let ts = job
+            .data
+            .ts
+            .filter(|t| t.is_finite() && *t > 0.0)
+            .ok_or_else(|| Error::input(&job_path, "field 'data.ts': missing or not a positive number"))?;
+        let ks = k_values(&job.grid.k);
+
+        // job.json holds absolute paths; an older or hand-made one may be relative to the folder.
+        let resolve = |p: &Path| if p.is_absolute() { p.to_path_buf() } else { folder.join(p) };
+        job.data.path = resolve(&job.data.path);
+        if let Some(v) = job.validation.as_mut() {
+            v.path = resolve(&v.path);
+        }
+        let gone = |spec: &DataInfo, what: &str| -> Result<()> {
+            if spec.path.is_file() {
+                Ok(())
+            } else {
+                Err(Error::input(
+                    &spec.path,
+                    format!(
+                        "missing: the {what} record named in {} is gone; the report re-reads it for the \
+                         residuals, the simulated outputs and the spectral estimate",
+                        job_path.display()
+                    ),
+                ))
+            }
+        };
+        gone(&job.data, "estimation")?;
+        let est = data::read_record(&job.data.path, &job.data.u, job.data.y.as_deref().unwrap_or("y"))?;
+        let val = match &job.validation {
+            Some(v) => {
+                gone(v, "validation")?;
+                // The sweep's default (y0 when the file has it) in case job.json leaves it open.
+                let y = match &v.y {
+                    Some(y) => y.clone(),
+                    None if data::column_names(&v.path)?.iter().any(|c| c == "y0") => "y0".into(),
+                    None => "y".into(),
+                };
+                Some(data::read_record(&v.path, &v.u, &y)?)
+            }
+            None => None,
+        };
+        Ok(Sweep { folder: folder.to_path_buf(), rows, selection, job, ks, ts, est, val })
+    }
+
+    /// k of a k index: from the job's grid, else from a row (a grid edited after the run).
+    fn k_of(&self, k_index: u32) -> f64 {
+        self.ks.get(k_index as usize).copied().unwrap_or_else(|| {
+            self.rows.iter().find(|r| r.k_index == Some(k_index)).and_then(|r| r.k).unwrap_or(f64::NAN)
+        })
+    }
+
+    /// The Huber row of a candidate (for sigma, iterations, termination, pole radius).
+    fn huber_row(&self, c: &Candidate) -> Option<&CellRow> {
+        self.rows.iter().find(|r| {
+            r.method == Method::Huber
+                && (r.nb, r.nf, r.delay) == (c.nb, c.nf, c.delay)
+                && r.k_index == Some(c.k_index)
+                && r.ok()
+        })
+    }
+
+    /// The least-squares row of a candidate's order pair.
+    fn ls_row(&self, c: &Candidate) -> Option<&CellRow> {
+        self.rows.iter().find(|r| r.method == Method::Ls && (r.nb, r.nf, r.delay) == (c.nb, c.nf, c.delay) && r.ok())
+    }
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+    serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not the file `oesweep run` writes: {e}")))
+}
 
 /// Write `report.html` and its figures into `folder`; returns the page's path.
 pub fn write_report(folder: &Path) -> Result<PathBuf> {
-    Err(Error::Invalid(format!("{}: the report is not implemented yet", folder.display())))
+    let sweep = Sweep::load(folder)?;
+    let sections = build_sections(&sweep)?;
+
+    let mut written = BTreeSet::new();
+    for fig in sections.iter().flat_map(|s| &s.figures) {
+        let path = folder.join(&fig.file);
+        write_atomically(&path, |f| std::io::Write::write_all(f, fig.svg.as_bytes()).map_err(|e| e.to_string()))?;
+        written.insert(fig.file.clone());
+    }
+    remove_stale_figures(folder, &written);
+
+    let page = html::page(&header(&sweep), &sections);
+    let path = folder.join("report.html");
+    write_atomically(&path, |f| std::io::Write::write_all(f, page.as_bytes()).map_err(|e| e.to_string()))?;
+    Ok(path)
+}
+
+/// Remove `report-*.svg` files of an earlier report (e.g. heat maps of other k). Best effort: a
+/// stale figure is harmless, the page does not link it.
+fn remove_stale_figures(folder: &Path, keep: &BTreeSet<String>) {
+    let Ok(dir) = std::fs::read_dir(folder) else { return };
+    for entry in dir.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name.starts_with(FIGURE_PREFIX) && name.ends_with(".svg") && !keep.contains(&name) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
+/// A drawn figure, or the error naming the file it was meant for.
+fn figure(folder: &Path, file: &str, drawn: std::result::Result<Figure, String>) -> Result<Figure> {
+    drawn.map_err(|msg| Error::output(folder.join(file), format!("cannot draw the figure: {msg}")))
+}
+
+/// Up to [`MAX_HEAT_MAPS`] k indices spread over the grid (all when there are few), plus the
+/// picks' k indices.
+fn heat_map_indices(n: usize, picks: &[u32]) -> Vec<u32> {
+    let mut v: BTreeSet<u32> = if n <= MAX_HEAT_MAPS {
+        (0..n as u32).collect()
+    } else {
+        (0..MAX_HEAT_MAPS).map(|i| ((i * (n - 1)) as f64 / (MAX_HEAT_MAPS - 1) as f64).round() as u32).collect()
+    };
+    v.extend(picks.iter().copied().filter(|&k| (k as usize) < n.max(1)));
+    v.into_iter().collect()
+}
+
+fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
+    let folder = &s.folder;
+    let sel = &s.selection;
+    let m1 = sel.m1.as_ref().map(|p| Picked { name: "M1", model: &p.model, colour: plot::M1_COLOUR });
+    let m2 = sel.m2.as_ref().map(|p| Picked { name: "M2", model: &p.model, colour: plot::M2_COLOUR });
+    let picks: Vec<Picked> = m1.into_iter().chain(m2).collect();
+    let (basis_name, _) = figures::basis_column(sel.basis);
+    let mut sections = Vec::new();
+
+    // --- Picks table ---
+    let mut intro = String::new();
+    let mut table_rows = Vec::new();
+    for (p, class, pick) in [(m1, "m1", &sel.m1), (m2, "m2", &sel.m2)] {
+        if let (Some(p), Some(_)) = (p, pick) {
+            if let Some(r) = s.huber_row(p.model) {
+                table_rows.push(html::PickRow { name: p.name, class, row: r });
+            }
+            if let Some(r) = s.ls_row(p.model) {
+                table_rows.push(html::PickRow { name: "LS", class: "ls", row: r });
+            }
+        }
+    }
+    if table_rows.is_empty() {
+        intro.push_str("<p class=\"note\">No model was picked: no Huber cell had a usable fit.</p>\n");
+    } else {
+        intro.push_str(&html::picks_table(&table_rows, basis_name));
+    }
+    for (name, pick) in [("M1", &sel.m1), ("M2", &sel.m2)] {
+        if let Some(p) = pick {
+            intro.push_str(&format!("<p class=\"rule\"><b>{name}.</b> {}</p>\n", esc(&p.rule)));
+        }
+    }
+    intro.push_str("<div class=\"params\">\n");
+    for (name, pick) in [("M1", &sel.m1), ("M2", &sel.m2)] {
+        if let Some(p) = pick {
+            let m = &p.model;
+            let title =
+                format!("{name}: OE({},{}), k = {}, γ = {}", m.nb, m.nf, plot::short(m.k), plot::sig(m.gamma, 4));
+            intro.push_str(&html::parameter_table(&title, &m.b, &m.f));
+        }
+    }
+    intro.push_str(
+        "</div>\n<p class=\"meta\">B(q⁻¹) = b₁ + b₂ q⁻¹ + …, F(q⁻¹) = 1 + f₁ q⁻¹ + …, \
+                    y_t = q⁻ᵈ B/F u_t + e_t (cf. paper Tables 2 and 3).</p>\n",
+    );
+    for (name, pick) in [("M1", &sel.m1), ("M2", &sel.m2)] {
+        if let Some(p) = pick {
+            intro.push_str(&format!("<h3>Best {name} candidates</h3>\n"));
+            intro.push_str(&html::candidates_table(&p.candidates, basis_name, 10));
+        }
+    }
+    sections.push(Section {
+        id: "picks",
+        heading: "Picked models".into(),
+        intro_html: intro,
+        figures: vec![],
+        notes: vec![],
+    });
+
+    // --- W and L1C over nF ---
+    let mut figs = Vec::new();
+    let mut notes = Vec::new();
+    let first_k = s.rows.iter().filter_map(|r| r.k_index).min();
+    for (curve, pick, file) in [(Curve::W, m1, "report-w-nf.svg"), (Curve::L1c, m2, "report-l1c-nf.svg")] {
+        match pick.map(|p| p.model.k_index).or(first_k) {
+            Some(ki) => figs.push(figure(
+                folder,
+                file,
+                figures::curve_figure(&s.rows, curve, ki, s.k_of(ki), sel.min_tolerance, pick, file),
+            )?),
+            None => notes.push(format!("{file}: the table has no Huber cell to draw.")),
+        }
+    }
+    sections.push(Section {
+        id: "curves",
+        heading: "Order choice: W and L1C over nF".into(),
+        intro_html: "<p>The picks are local minima over nF of these curves (one curve per nB and k), chosen \
+                     by their fit. The figures show the curves at the k of each pick.</p>\n"
+            .into(),
+        figures: figs,
+        notes,
+    });
+
+    // --- Heat maps and picks against k ---
+    let pick_ks: Vec<u32> = picks.iter().map(|p| p.model.k_index).collect();
+    let mut figs = Vec::new();
+    let n_k = s.ks.len().max(s.rows.iter().filter_map(|r| r.k_index).max().map_or(0, |m| m as usize + 1));
+    for ki in heat_map_indices(n_k, &pick_ks) {
+        let file = format!("{FIGURE_PREFIX}heat-k{ki:02}.svg");
+        figs.push(figure(folder, &file, figures::heat_figure(&s.rows, ki, s.k_of(ki), sel.basis, &picks, &file))?);
+    }
+    let file = "report-picks-k.svg";
+    figs.push(figure(folder, file, figures::picks_by_k_figure(&s.rows, &s.ks, sel, file))?);
+    let shown = if n_k <= MAX_HEAT_MAPS { "every k of the grid" } else { "k spread over the grid and the picks' k" };
+    sections.push(Section {
+        id: "maps",
+        heading: "The whole grid: heat maps and the picks against k".into(),
+        intro_html: format!("<p>Heat maps for {shown} ({} of {n_k}).</p>\n", figs.len() - 1),
+        figures: figs,
+        notes: vec![],
+    });
+
+    // --- Bode ---
+    let mut figs = Vec::new();
+    let mut notes = Vec::new();
+    match welch(&s.est.u, &s.est.y, s.ts, &WelchOptions::default()) {
+        Ok(est) => {
+            for p in &picks {
+                let file = format!("{FIGURE_PREFIX}bode-{}.svg", p.name.to_lowercase());
+                figs.push(figure(folder, &file, figures::bode_figure(&est, s.job.band_hz, *p, &file))?);
+            }
+        }
+        Err(e) => notes.push(format!("No spectral estimate of the estimation record: {e}")),
+    }
+    if picks.is_empty() {
+        notes.push("No pick, so no frequency response to show.".into());
+    }
+    sections.push(Section {
+        id: "bode",
+        heading: "Frequency response of the picks".into(),
+        intro_html: String::new(),
+        figures: figs,
+        notes,
+    });
+
+    // --- Residuals and simulated outputs, of the M2 pick (the paper's final model) ---
+    let mut res_figs = Vec::new();
+    let mut out_figs = Vec::new();
+    let mut notes = Vec::new();
+    match m2.or(m1) {
+        Some(p) => match s.ls_row(p.model) {
+            Some(ls) => {
+                let file = "report-residuals.svg";
+                res_figs.push(figure(folder, file, figures::residual_figure(&s.est.u, &s.est.y, ls, p, file))?);
+                let records = [("estimation", Some(&s.est)), ("validation", s.val.as_ref())];
+                for (name, rec) in records {
+                    if let Some(rec) = rec {
+                        let file = format!("{FIGURE_PREFIX}output-{name}.svg");
+                        out_figs.push(figure(
+                            folder,
+                            &file,
+                            figures::output_figure(&rec.u, &rec.y, s.ts, name, ls, p, OUTPUT_WINDOW, &file),
+                        )?);
+                    }
+                }
+            }
+            None => notes.push(format!(
+                "The table has no usable least-squares row of OE({},{}): no residual or output figure.",
+                p.model.nb, p.model.nf
+            )),
+        },
+        None => notes.push("No pick, so no residuals or simulated outputs to show.".into()),
+    }
+    sections.push(Section {
+        id: "residuals",
+        heading: "Residuals: least squares against Huber".into(),
+        intro_html: String::new(),
+        figures: res_figs,
+        notes: notes.clone(),
+    });
+    sections.push(Section {
+        id: "outputs",
+        heading: "Simulated outputs".into(),
+        intro_html: String::new(),
+        figures: out_figs,
+        notes,
+    });
+
+    // --- Files ---
+    sections.push(Section {
+        id: "files",
+        heading: "Result files".into(),
+        intro_html: "<ul>\n<li><a href=\"cells.parquet\">cells.parquet</a>: one row per Huber cell and per \
+                     least-squares fit (columns in the README)</li>\n<li><a href=\"selection.json\">selection.json</a>: \
+                     the picks, their rules and candidate lists</li>\n<li><a href=\"job.json\">job.json</a>: the job as \
+                     run</li>\n</ul>\n"
+            .into(),
+        figures: vec![],
+        notes: vec![],
+    });
+    Ok(sections)
+}
+
+/// Facts about the sweep shown at the top of the page.
+fn header(s: &Sweep) -> html::Header {
+    let j = &s.job;
+    let huber = s.rows.iter().filter(|r| r.method == Method::Huber).count();
+    let ls = s.rows.iter().filter(|r| r.method == Method::Ls).count();
+    let record = |r: &Record| {
+        format!(
+            "<code>{}</code>: {} samples, u = {}, y = {}",
+            esc(&r.path.display().to_string()),
+            r.len(),
+            esc(&r.u_name),
+            esc(&r.y_name)
+        )
+    };
+    let (kmin, kmax) = s.ks.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), k| (a.min(*k), b.max(*k)));
+    let mut facts = vec![
+        ("estimation record".to_string(), record(&s.est)),
+        ("sampling period".to_string(), format!("{} s (Nyquist {} Hz)", plot::short(s.ts), plot::short(0.5 / s.ts))),
+    ];
+    if let Some(v) = &s.val {
+        facts.push(("validation record".into(), record(v)));
+    }
+    facts.push((
+        "grid".into(),
+        format!(
+            "nB {}..{}, nF {}..{}, {} values of k from {} to {}{}",
+            j.grid.nb[0],
+            j.grid.nb[1],
+            j.grid.nf[0],
+            j.grid.nf[1],
+            s.ks.len(),
+            plot::short(kmin),
+            plot::short(kmax),
+            j.start.as_ref().map(|st| format!(", Huber fits start from <code>{}</code>", esc(st))).unwrap_or_default()
+        ),
+    ));
+    facts.push((
+        "cells".into(),
+        format!("{huber} Huber cells ({} failed), {ls} least-squares fits", s.selection.failed),
+    ));
+    facts.push((
+        "fit band".into(),
+        j.band_hz.map(|[a, b]| format!("{} to {} Hz", plot::short(a), plot::short(b))).unwrap_or_else(|| "none".into()),
+    ));
+    facts.push((
+        "model choice".into(),
+        format!(
+            "ranked by <code>{}</code>; local-minimum tolerance {}, ties within {} points",
+            figures::basis_column(s.selection.basis).0,
+            s.selection.min_tolerance,
+            s.selection.fit_tolerance
+        ),
+    ));
+    html::Header {
+        name: j.name.clone(),
+        folder: s.folder.display().to_string(),
+        version: j.oesweep_version.clone(),
+        facts,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn heat_maps_cover_the_grid_and_the_picks() {
+        assert_eq!(heat_map_indices(3, &[1]), vec![0, 1, 2]);
+        assert_eq!(heat_map_indices(12, &[]), vec![0, 2, 4, 7, 9, 11]);
+        assert_eq!(heat_map_indices(40, &[3, 3]), vec![0, 3, 8, 16, 23, 31, 39]);
+    }
 }
