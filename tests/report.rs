@@ -28,25 +28,9 @@ fn small_grid() -> serde_json::Value {
 fn sweep(dir: &Path, validation_and_band: bool, grid: serde_json::Value, extra: &[&str]) -> PathBuf {
     let (b, f) = common::oe22();
     std::fs::write(dir.join("sys.json"), serde_json::json!({"b": b, "f": f, "delay": 1}).to_string()).unwrap();
-    for (name, seed) in [("est.csv", "1"), ("val.csv", "2")] {
-        let o = oesweep(&[
-            "simulate",
-            "--system",
-            dir.join("sys.json").to_str().unwrap(),
-            "--out",
-            dir.join(name).to_str().unwrap(),
-            "--n",
-            "2000",
-            "--seed",
-            seed,
-            "--noise-std",
-            "0.01",
-            "--outlier-prob",
-            "0.03",
-            "--outlier-range",
-            "1,3",
-        ]);
-        assert!(o.status.success(), "{}", text(&o));
+    for (name, seed) in [("est.csv", 1), ("val.csv", 2)] {
+        let noise = common::Noise { amplitude: 10.0, std: 0.01, spike_probability: 0.03, spike_range: "1,3" };
+        common::simulate(&dir.join("sys.json"), &dir.join(name), 2000, seed, &noise);
     }
     let mut job = serde_json::json!({
         "name": "small",

@@ -60,28 +60,9 @@ fn wait_at_most(child: &mut Child, limit: Duration) -> ExitStatus {
 
 /// Data from the bundled 10th-order piezo model (5000 samples, noise and spikes) in `dir`.
 fn make_data(dir: &Path) {
-    let system = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_system.json");
-    for (name, seed, spikes) in [("est.csv", "1", "0.03"), ("val.csv", "2", "0")] {
-        let o = oesweep(&[
-            "simulate",
-            "--system",
-            system.to_str().unwrap(),
-            "--out",
-            dir.join(name).to_str().unwrap(),
-            "--n",
-            "5000",
-            "--seed",
-            seed,
-            "--amplitude",
-            "1",
-            "--noise-std",
-            "0.05",
-            "--outlier-prob",
-            spikes,
-            "--outlier-range",
-            "1,3",
-        ]);
-        assert!(o.status.success(), "{}", text(&o));
+    for (name, seed, spikes) in [("est.csv", 1, 0.03), ("val.csv", 2, 0.0)] {
+        let noise = common::Noise { amplitude: 1.0, std: 0.05, spike_probability: spikes, spike_range: "1,3" };
+        common::simulate(&common::piezo_system(), &dir.join(name), 5000, seed, &noise);
     }
 }
 

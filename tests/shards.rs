@@ -5,6 +5,8 @@
 //! is; a whole run finishes the rest from the shard folders. `oesweep slurm` is checked
 //! against a stand-in `sbatch` on the PATH (the real cluster test is tests/slurm_cluster.sh).
 
+mod common;
+
 use oesweep::export::parquet::read_cells;
 use oesweep::plan::Plan;
 use oesweep::table::CellRow;
@@ -27,28 +29,9 @@ fn text(o: &Output) -> String {
 /// Data from the bundled piezo model (noise and spikes, so the extra least-squares starts and
 /// the continuation chains matter) and a job over 16 order pairs x 4 k in `dir`.
 fn setup(dir: &Path, start: &str) -> PathBuf {
-    let system = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_system.json");
-    for (name, seed, spikes) in [("est.csv", "1", "0.03"), ("val.csv", "2", "0")] {
-        let o = oesweep(&[
-            "simulate",
-            "--system",
-            system.to_str().unwrap(),
-            "--out",
-            dir.join(name).to_str().unwrap(),
-            "--n",
-            "3000",
-            "--seed",
-            seed,
-            "--amplitude",
-            "1",
-            "--noise-std",
-            "0.05",
-            "--outlier-prob",
-            spikes,
-            "--outlier-range",
-            "1,3",
-        ]);
-        assert!(o.status.success(), "{}", text(&o));
+    for (name, seed, spikes) in [("est.csv", 1, 0.03), ("val.csv", 2, 0.0)] {
+        let noise = common::Noise { amplitude: 1.0, std: 0.05, spike_probability: spikes, spike_range: "1,3" };
+        common::simulate(&common::piezo_system(), &dir.join(name), 3000, seed, &noise);
     }
     for (file, out) in [("ref.json", "ref"), ("job.json", "out")] {
         let job = serde_json::json!({

@@ -16,28 +16,11 @@ fn oesweep(args: &[&str]) -> Output {
 fn setup(dir: &Path, out: &str, start: &str) -> PathBuf {
     let (b, f) = common::oe22();
     std::fs::write(dir.join("sys.json"), serde_json::json!({"b": b, "f": f, "delay": 1}).to_string()).unwrap();
-    for (name, seed) in [("est.csv", "1"), ("val.csv", "2")] {
-        if dir.join(name).exists() {
-            continue;
+    for (name, seed) in [("est.csv", 1), ("val.csv", 2)] {
+        if !dir.join(name).exists() {
+            let noise = common::Noise { amplitude: 10.0, std: 0.01, spike_probability: 0.03, spike_range: "1,3" };
+            common::simulate(&dir.join("sys.json"), &dir.join(name), 2000, seed, &noise);
         }
-        let o = oesweep(&[
-            "simulate",
-            "--system",
-            dir.join("sys.json").to_str().unwrap(),
-            "--out",
-            dir.join(name).to_str().unwrap(),
-            "--n",
-            "2000",
-            "--seed",
-            seed,
-            "--noise-std",
-            "0.01",
-            "--outlier-prob",
-            "0.03",
-            "--outlier-range",
-            "1,3",
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
     let job = serde_json::json!({
         "name": "small",

@@ -54,3 +54,28 @@ pub fn oe1010() -> (Vec<f64>, Vec<f64>) {
     let b = vec![0.02, 0.05, -0.03, 0.04, 0.01, -0.02, 0.03, 0.015, -0.01, 0.005];
     (b, f)
 }
+
+/// Spikes and noise of [`simulate`].
+pub struct Noise<'a> {
+    pub amplitude: f64,
+    pub std: f64,
+    pub spike_probability: f64,
+    pub spike_range: &'a str,
+}
+
+/// Run `oesweep simulate` of the system file `system` into `out` (CSV with u, y, y0).
+pub fn simulate(system: &std::path::Path, out: &std::path::Path, n: usize, seed: u64, noise: &Noise) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .args(["simulate", "--system", system.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .args(["--n", &n.to_string(), "--seed", &seed.to_string(), "--amplitude", &noise.amplitude.to_string()])
+        .args(["--noise-std", &noise.std.to_string(), "--outlier-prob", &noise.spike_probability.to_string()])
+        .args(["--outlier-range", noise.spike_range])
+        .output()
+        .expect("oesweep runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// The bundled piezo-like system file.
+pub fn piezo_system() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_system.json")
+}
