@@ -115,9 +115,13 @@ pub struct HuberFit {
 /// Steps 1-2: least-squares prediction-error fit from each initial guess (ARX, IV); the
 /// lowest criterion wins (ties: the first).
 pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Workspace) -> LsFit {
-    let mut sols: Vec<Solution> = init::initial_guesses(prob)
+    let guesses = init::initial_guesses(prob);
+    // Each guess twice: with the usual damping and with heavy initial damping (gradient-like
+    // first steps, as a trust-region solver takes), which often ends in another, lower minimum.
+    let damped = SolverOptions { lambda0: DAMPED_LAMBDA0, ..opts.clone() };
+    let mut sols: Vec<Solution> = guesses
         .iter()
-        .map(|theta0| solver::minimise(prob, Loss::LeastSquares, theta0, opts, ws))
+        .flat_map(|g| [opts, &damped].map(|o| solver::minimise(prob, Loss::LeastSquares, g, o, ws)))
         .collect();
     let best_of = |sols: &[Solution]| {
         let mut best = 0;
@@ -173,6 +177,8 @@ pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Work
     fit
 }
 
+/// Initial damping of the second least-squares run from each initial guess.
+const DAMPED_LAMBDA0: f64 = 1.0;
 /// k of the robust detour start of the least-squares phase (see [`fit_ls`]).
 const ROBUST_START_K: [f64; 2] = [0.5, 0.1];
 /// Pole radius above which a least-squares fit counts as on the stability boundary.
