@@ -1,10 +1,16 @@
 //! Cost of one sweep cell, phase by phase (METHOD.md 5).
 //!
 //! A sweep runs the L2 phase once per order pair and the Huber phase once per (order pair, k),
-//! so the two are timed separately: `l2_phase` (ARX/IV starts + LM, i.e. `fit_ls`) and
-//! `huber_phase` (LM on W_{N, k sigma} from theta_LS, i.e. what `fit_huber` spends in the
-//! solver). `huber_phase_n` repeats the Huber phase on simulated records of growing length to
-//! show that the cost per iteration is linear in N.
+//! so the two are timed separately:
+//! - `l2_phase`: `fit_ls`, every start (ARX, IV, damped variants, robust detour) run to its
+//!   least-squares minimum;
+//! - `huber_phase`: one LM minimisation of W_{N, k sigma} from theta_LS (what `fit_huber`
+//!   spends in the solver), the unit the other Huber costs are multiples of;
+//! - `huber_multi`: the Huber phase as the CLI runs it and the sweep's default start strategy
+//!   repeats it (`fit_huber_multi`: theta_LS plus the alternative starts the L2 phase leaves,
+//!   best kept), i.e. what one more k costs a cell;
+//! - `huber_phase_n`: `huber_phase` on simulated records of growing length, to show that the
+//!   cost per iteration is linear in N.
 //!
 //! Run: `cargo bench --bench cell` (about a minute). Each benchmark reports, on stderr, the
 //! iteration count of the fit it times, so time per iteration can be read off.
@@ -97,6 +103,29 @@ fn huber_phase(c: &mut Criterion) {
     group.finish();
 }
 
+fn huber_multi(c: &mut Criterion) {
+    let (u, y) = estimation_record();
+    let opts = SolverOptions::default();
+    let mut group = c.benchmark_group("huber_multi");
+    group.sampling_mode(SamplingMode::Flat);
+    for (nb, nf) in ORDERS {
+        let prob = Problem { u: &u, y: &y, nb, nf, delay: 1 };
+        let mut ws = Workspace::new();
+        let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
+        let (h, which) = estimate::fit_huber_multi(&prob, &ls, K, &Judge::default(), &opts, &mut ws);
+        eprintln!(
+            "huber_multi OE({nb},{nf}) k={K}: {} starts, winner {which} ({} iterations), W {:.6}",
+            1 + ls.alternatives.len(),
+            h.iterations,
+            h.criterion
+        );
+        group.bench_with_input(BenchmarkId::from_parameter(format!("OE({nb},{nf})")), &prob, |b, prob| {
+            b.iter(|| estimate::fit_huber_multi(black_box(prob), &ls, K, &Judge::default(), &opts, &mut ws))
+        });
+    }
+    group.finish();
+}
+
 fn huber_phase_n(c: &mut Criterion) {
     let (nb, nf) = (12, 12);
     let opts = SolverOptions::default();
@@ -141,6 +170,6 @@ fn config() -> Criterion {
 criterion_group! {
     name = benches;
     config = config();
-    targets = l2_phase, huber_phase, huber_phase_n
+    targets = l2_phase, huber_phase, huber_multi, huber_phase_n
 }
 criterion_main!(benches);
