@@ -297,24 +297,20 @@ fn huber_cell(
     let t = Instant::now();
     let run = catch_unwind(AssertUnwindSafe(|| {
         failpoint(pair.nb, pair.nf, cell.k_index);
-        let mut fit_from = |start: &[f64]| estimate::fit_huber(&prob, *sigma, k, start, judge, &ctx.solver, ws);
         // theta_LS, then the pair's extra starts; the lowest criterion wins, ties the earlier.
-        let mut from_ls = || {
-            let mut best = (fit_from(theta_ls), "ls");
-            for alt in &ls.alternatives {
-                let h = fit_from(alt);
-                if h.criterion < best.0.criterion || !best.0.criterion.is_finite() {
-                    best = (h, "ls_alt");
-                }
-            }
-            best
+        let from_ls = |ws: &mut Workspace| {
+            let (fit, which) =
+                estimate::fit_huber_starts(&prob, *sigma, k, theta_ls, &ls.alternatives, judge, &ctx.solver, ws);
+            (fit, if which == 0 { "ls" } else { "ls_alt" })
         };
+        let fit_from =
+            |start: &[f64], ws: &mut Workspace| estimate::fit_huber(&prob, *sigma, k, start, judge, &ctx.solver, ws);
         match (plan.start, neighbour) {
-            (StartStrategy::Ls, _) | (_, None) => from_ls(),
-            (StartStrategy::Neighbour, Some(nb)) => (fit_from(nb), "neighbour"),
+            (StartStrategy::Ls, _) | (_, None) => from_ls(ws),
+            (StartStrategy::Neighbour, Some(nb)) => (fit_from(nb, ws), "neighbour"),
             (StartStrategy::Best, Some(nb)) => {
-                let a = from_ls();
-                let b = fit_from(nb);
+                let a = from_ls(ws);
+                let b = fit_from(nb, ws);
                 // Ties keep the least-squares start.
                 if b.criterion < a.0.criterion { (b, "neighbour") } else { a }
             }

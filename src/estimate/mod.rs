@@ -198,10 +198,25 @@ pub fn fit_huber_multi(
     opts: &SolverOptions,
     ws: &mut Workspace,
 ) -> (HuberFit, usize) {
-    let mut best = fit_huber(prob, ls.sigma, k, &ls.theta(), judge, opts, ws);
+    fit_huber_starts(prob, ls.sigma, k, &ls.theta(), &ls.alternatives, judge, opts, ws)
+}
+
+/// [`fit_huber_multi`] from its parts: `theta_ls` first, then `alternatives`.
+#[allow(clippy::too_many_arguments)]
+pub fn fit_huber_starts(
+    prob: &Problem,
+    sigma: f64,
+    k: f64,
+    theta_ls: &[f64],
+    alternatives: &[Vec<f64>],
+    judge: &Judge,
+    opts: &SolverOptions,
+    ws: &mut Workspace,
+) -> (HuberFit, usize) {
+    let mut best = fit_huber(prob, sigma, k, theta_ls, judge, opts, ws);
     let mut which = 0;
-    for (i, start) in ls.alternatives.iter().enumerate() {
-        let h = fit_huber(prob, ls.sigma, k, start, judge, opts, ws);
+    for (i, start) in alternatives.iter().enumerate() {
+        let h = fit_huber(prob, sigma, k, start, judge, opts, ws);
         if h.criterion < best.criterion || !best.criterion.is_finite() {
             best = h;
             which = i + 1;
