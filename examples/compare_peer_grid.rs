@@ -1,26 +1,50 @@
 //! Answer quality against the scipy peer on a grid, at the same gamma (issue 4).
 //!
-//! Usage: `cargo run --release --example compare_peer_grid -- EST.csv PEER.jsonl`
+//! Usage: `cargo run --release --example compare_peer_grid -- EST.csv PEER.jsonl [chains|ls]`
 //! where PEER.jsonl is the output of
 //! `python3 ../shared/peer/peer.py --est EST.csv --val VAL.csv --grid nb=.. nf=.. k=.. --out PEER.jsonl`.
 //!
 //! For every order pair it runs oesweep's least-squares phase and compares its criterion with
-//! the peer's (`mse / 2`); for every Huber line it runs oesweep's Huber fit from oesweep's own
-//! least-squares solution with the *peer's* gamma, so both minimise the same W, and compares
-//! the criteria with a relative tolerance of 1e-4 (METHOD.md 8: local minima differ in the
-//! 5th digit). Prints the share of cells where oesweep is no worse, and the worst cases.
+//! the peer's (`mse / 2`). For the Huber lines it runs oesweep's Huber phase with the *peer's*
+//! gamma, so both minimise the same W, and compares the criteria with a relative tolerance of
+//! 1e-4 (METHOD.md 8: local minima differ in the 5th digit):
+//! - `chains` (default, the sweep's default start strategy): the pair's k values are those of
+//!   the paper grid (40, log-spaced over [0.05, 2]) plus the peer's, expressed in oesweep's
+//!   sigma (k = gamma_peer / sigma), walked in increasing order by [`estimate::Chains`];
+//! - `ls`: every peer cell on its own from theta_LS and each extra start.
+//!
+//! Prints the share of cells where oesweep is no worse, the worst cases, and the work done.
+//! Environment: OESWEEP_EXTRA_STARTS overrides `solver.huber_extra_starts`.
 
-use oesweep::estimate::{self, Judge, Loss, Problem, SolverOptions, Workspace, solver};
+use oesweep::estimate::{self, Judge, Problem, SolverOptions, Workspace};
+use rayon::prelude::*;
 use std::collections::BTreeMap;
+use std::time::Instant;
 
-struct Crit {
-    criterion: f64,
+/// Paper grid: 40 log-spaced k over [0.05, 2].
+fn paper_ks() -> Vec<f64> {
+    (0..40).map(|i| 0.05 * (2.0f64 / 0.05).powf(i as f64 / 39.0)).collect()
+}
+
+struct PairResult {
+    /// (relative difference to the peer, description) of the L2 fit.
+    ls: (f64, String),
+    /// The same for every peer Huber cell.
+    huber: Vec<(f64, String)>,
+    /// Huber fits run and their iterations.
+    iterations: usize,
+    seconds: f64,
 }
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    if args.len() != 3 {
-        eprintln!("usage: compare_peer_grid EST.csv PEER.jsonl");
+    if !(3..=4).contains(&args.len()) {
+        eprintln!("usage: compare_peer_grid EST.csv PEER.jsonl [chains|ls]");
+        std::process::exit(2);
+    }
+    let strategy = args.get(3).map(String::as_str).unwrap_or("chains");
+    if !["chains", "ls"].contains(&strategy) {
+        eprintln!("strategy must be chains or ls");
         std::process::exit(2);
     }
     let rec = oesweep::data::read_record(args[1].as_ref(), "u", "y").expect("estimation data");
@@ -31,66 +55,91 @@ fn main() {
         let key = (v["nb"].as_u64().unwrap() as usize, v["nf"].as_u64().unwrap() as usize);
         by_pair.entry(key).or_default().push(v);
     }
-    // OESWEEP_EXTRA_STARTS overrides solver.huber_extra_starts (to measure its effect).
     let mut opts = SolverOptions::default();
     if let Ok(v) = std::env::var("OESWEEP_EXTRA_STARTS") {
         opts.huber_extra_starts = v.parse().expect("a count");
     }
-    let mut ws = Workspace::new();
     let tol = 1e-4;
-    let (mut ls_ok, mut ls_n, mut h_ok, mut h_n) = (0, 0, 0, 0);
-    let mut worst: Vec<(f64, String)> = Vec::new();
-    for ((nb, nf), lines) in &by_pair {
-        let prob = Problem { u: &rec.u, y: &rec.y, nb: *nb, nf: *nf, delay: 1 };
-        let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
-        for v in lines {
-            if v["method"] == "ls" {
-                let peer = v["mse"].as_f64().unwrap() / 2.0;
-                let rel = (ls.criterion - peer) / peer;
-                ls_n += 1;
-                if rel <= tol {
-                    ls_ok += 1;
+    let judge = Judge::default();
+    let pairs: Vec<_> = by_pair.into_iter().collect();
+    let t0 = Instant::now();
+    let results: Vec<PairResult> = pairs
+        .par_iter()
+        .map_init(Workspace::new, |ws, ((nb, nf), lines)| {
+            let (nb, nf) = (*nb, *nf);
+            let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1 };
+            let t = Instant::now();
+            let ls = estimate::fit_ls(&prob, &judge, &opts, ws);
+            let mut ls_cmp = (f64::NAN, String::new());
+            // (gamma, peer W): the peer's Huber cells of this pair.
+            let mut peer_cells = Vec::new();
+            for v in lines {
+                if v["method"] == "ls" {
+                    let peer = v["mse"].as_f64().unwrap() / 2.0;
+                    ls_cmp = (
+                        (ls.criterion - peer) / peer,
+                        format!("ls    OE({nb},{nf}): ours {:.8e} peer {:.8e}", ls.criterion, peer),
+                    );
                 } else {
-                    worst.push((rel, format!("ls    OE({nb},{nf}): ours {:.8e} peer {:.8e}", ls.criterion, peer)));
-                }
-            } else {
-                let gamma = v["gamma"].as_f64().unwrap();
-                let peer = v["W"].as_f64().unwrap();
-                // oesweep's multi-start Huber phase (estimate::fit_huber_multi), at the peer's gamma.
-                let mut crit = f64::INFINITY;
-                for start in std::iter::once(ls.theta()).chain(ls.alternatives.iter().cloned()) {
-                    let sol = solver::minimise(&prob, Loss::Huber { gamma }, &start, &opts, &mut ws);
-                    crit = crit.min(sol.criterion);
-                }
-                let sol = Crit { criterion: crit };
-                let rel = (sol.criterion - peer) / peer;
-                h_n += 1;
-                if rel <= tol {
-                    h_ok += 1;
-                } else {
-                    worst.push((
-                        rel,
-                        format!(
-                            "huber OE({nb},{nf}) k={}: ours {:.8e} peer {:.8e}",
-                            v["k"].as_f64().unwrap(),
-                            sol.criterion,
-                            peer
-                        ),
-                    ));
+                    peer_cells.push((v["gamma"].as_f64().unwrap(), v["W"].as_f64().unwrap()));
                 }
             }
-        }
-    }
+            let mut iterations = 0;
+            let mut ours = vec![f64::INFINITY; peer_cells.len()];
+            if strategy == "ls" {
+                for (o, &(gamma, _)) in ours.iter_mut().zip(&peer_cells) {
+                    let (h, _) = estimate::fit_huber_multi(&prob, &ls, gamma / ls.sigma, &judge, &opts, ws);
+                    iterations += h.iterations;
+                    *o = h.criterion;
+                }
+            } else {
+                // k values of the walk: the paper grid's (None) and the peer's (Some(index)).
+                let mut ks: Vec<(f64, Option<usize>)> = paper_ks().into_iter().map(|k| (k, None)).collect();
+                ks.extend(peer_cells.iter().enumerate().map(|(i, &(gamma, _))| (gamma / ls.sigma, Some(i))));
+                ks.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let mut chains = estimate::Chains::new(&ls.theta(), &ls.alternatives);
+                for (k, peer) in ks {
+                    let (h, _) = chains.step(&prob, ls.sigma, k, &judge, &opts, ws);
+                    iterations += h.iterations;
+                    if let Some(i) = peer {
+                        ours[i] = h.criterion;
+                    }
+                }
+            }
+            let huber = peer_cells
+                .iter()
+                .zip(&ours)
+                .map(|(&(gamma, peer), &w)| {
+                    let k = gamma / ls.sigma;
+                    ((w - peer) / peer, format!("huber OE({nb},{nf}) k={k:.4}: ours {w:.8e} peer {peer:.8e}"))
+                })
+                .collect();
+            PairResult { ls: ls_cmp, huber, iterations, seconds: t.elapsed().as_secs_f64() }
+        })
+        .collect();
+    let wall = t0.elapsed().as_secs_f64();
+    let mut worst: Vec<&(f64, String)> =
+        results.iter().flat_map(|r| std::iter::once(&r.ls).chain(&r.huber)).filter(|(rel, _)| *rel > tol).collect();
     worst.sort_by(|a, b| b.0.total_cmp(&a.0));
     for (rel, what) in worst.iter().take(15) {
-        println!("worse by {:.2e}: {what}", rel);
+        println!("worse by {rel:.2e}: {what}");
     }
+    let ls_ok = results.iter().filter(|r| r.ls.0 <= tol).count();
+    let h_n: usize = results.iter().map(|r| r.huber.len()).sum();
+    let h_ok: usize = results.iter().map(|r| r.huber.iter().filter(|(rel, _)| *rel <= tol).count()).sum();
     println!(
-        "least squares: no worse than the peer in {ls_ok}/{ls_n} order pairs ({:.1} %)",
-        100.0 * ls_ok as f64 / ls_n.max(1) as f64
+        "least squares: no worse than the peer in {ls_ok}/{} order pairs ({:.1} %)",
+        results.len(),
+        100.0 * ls_ok as f64 / results.len().max(1) as f64
     );
     println!(
-        "Huber (same gamma): no worse than the peer in {h_ok}/{h_n} cells ({:.1} %)",
+        "Huber (same gamma, start {strategy}): no worse than the peer in {h_ok}/{h_n} cells ({:.1} %)",
         100.0 * h_ok as f64 / h_n.max(1) as f64
+    );
+    println!(
+        "work: {:.1} s wall, {:.1} s summed over pairs, {} reported Huber iterations",
+        wall,
+        results.iter().map(|r| r.seconds).sum::<f64>(),
+        results.iter().map(|r| r.iterations).sum::<usize>()
     );
 }

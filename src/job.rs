@@ -79,8 +79,13 @@ pub struct Grid {
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum StartStrategy {
-    /// From the order pair's least-squares fit (METHOD.md 5), every cell independent.
+    /// Continuation chains along increasing k, one per start (theta_LS and the pair's extra
+    /// starts), merged when they reach the same minimum; each cell keeps the best chain
+    /// ([`crate::estimate::Chains`]). As good as `ls` against an independent solver at about a
+    /// third of its cost.
     #[default]
+    Chains,
+    /// From the order pair's least-squares fit (METHOD.md 5), every cell independent.
     Ls,
     /// Continuation along k: from the solution at the next larger k (the largest k from the
     /// least-squares fit). About half the iterations, but it may end in another local minimum.
@@ -92,6 +97,7 @@ pub enum StartStrategy {
 impl StartStrategy {
     pub fn as_str(self) -> &'static str {
         match self {
+            StartStrategy::Chains => "chains",
             StartStrategy::Ls => "ls",
             StartStrategy::Neighbour => "neighbour",
             StartStrategy::Best => "best",

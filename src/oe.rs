@@ -164,6 +164,11 @@ pub fn reflect_unstable(f: &mut [f64]) -> bool {
     if is_stable(f) {
         return false;
     }
+    if f.iter().any(|v| !v.is_finite()) {
+        // Nothing to reflect: fall back to F = 1 (the shrinking below would never end).
+        f.fill(0.0);
+        return true;
+    }
     let mut p = poles(f);
     if p.len() != f.len() {
         // Eigen solver failed: shrink towards F = 1, which is always stable.
@@ -234,6 +239,15 @@ mod tests {
         for f in cases {
             let r = max_pole_radius(f);
             assert_eq!(is_stable(f), r < 1.0 - 1e-12, "{f:?} radius {r}");
+        }
+    }
+
+    #[test]
+    fn reflection_of_a_non_finite_f_ends_at_f_equal_one() {
+        for bad in [[f64::NAN, 0.2], [0.5, f64::INFINITY]] {
+            let mut f = bad;
+            assert!(reflect_unstable(&mut f));
+            assert_eq!(f, [0.0, 0.0]);
         }
     }
 

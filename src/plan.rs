@@ -59,6 +59,13 @@ impl Plan {
         (0..self.pairs.len()).flat_map(|p| (0..self.ks.len()).map(move |k| Cell { pair: p, k_index: k })).collect()
     }
 
+    /// k indices in increasing k (ties: grid order): the order of the `chains` strategy.
+    pub fn k_ascending(&self) -> Vec<usize> {
+        let mut idx: Vec<usize> = (0..self.ks.len()).collect();
+        idx.sort_by(|&a, &b| self.ks[a].total_cmp(&self.ks[b]).then(a.cmp(&b)));
+        idx
+    }
+
     /// k indices in continuation order: largest k first (closest to least squares), then down.
     pub fn k_chain(&self) -> Vec<usize> {
         let mut idx: Vec<usize> = (0..self.ks.len()).collect();

@@ -222,6 +222,22 @@ fn run_in_pool(
             })
             .flatten()
             .collect(),
+        StartStrategy::Chains => {
+            let order = plan.k_ascending();
+            (0..plan.pairs.len())
+                .into_par_iter()
+                .map_init(Workspace::new, |ws, p| {
+                    let Some((pair_ls, _)) = &ls[p] else { return Vec::new() };
+                    let keys: Vec<bool> =
+                        order.iter().map(|&ki| done.contains_key(&huber_key(Cell { pair: p, k_index: ki }))).collect();
+                    if keys.iter().all(|&d| d) {
+                        return Vec::new();
+                    }
+                    chain_cells(plan, ctx, &judge, pair_ls, p, &order, &keys, ws, &stopped, on_row, progress)
+                })
+                .flatten()
+                .collect()
+        }
         StartStrategy::Neighbour | StartStrategy::Best => {
             let chain = plan.k_chain();
             (0..plan.pairs.len())
@@ -272,6 +288,75 @@ fn failpoint(nb: usize, nf: usize, k_index: usize) {
     }
 }
 
+/// The Huber cells of pair `p` under the `chains` strategy, in increasing k (`order`). The
+/// chains carry state from cell to cell that the rows do not hold, so a pair with unfinished
+/// cells is walked again from its first cell: the walk is deterministic, so the cells an
+/// earlier run finished (`done[i]` for `order[i]`) come out bit for bit the same and are not
+/// reported again. Each cell is guarded on its own: a panic becomes that cell's failed row
+/// and the chains go on from their last points.
+#[allow(clippy::too_many_arguments)]
+fn chain_cells(
+    plan: &Plan,
+    ctx: &Context,
+    judge: &Judge,
+    ls: &PairLs,
+    p: usize,
+    order: &[usize],
+    done: &[bool],
+    ws: &mut Workspace,
+    stopped: &dyn Fn() -> bool,
+    on_row: &(dyn Fn(&CellRow) + Sync),
+    progress: &Progress,
+) -> Vec<CellRow> {
+    let pair = plan.pairs[p];
+    let delay = plan.delay;
+    let mut out = Vec::new();
+    let failed = |ki: usize, reason: String| {
+        CellRow::failed(Method::Huber, pair.nb, pair.nf, delay, Some((ki, plan.ks[ki])), reason)
+    };
+    let Some((sigma, theta_ls)) = &ls.start else {
+        for (&ki, _) in order.iter().zip(done).filter(|(_, d)| !**d) {
+            let reason = ls.row.reason.as_deref().unwrap_or("it failed");
+            let row = failed(ki, format!("no least-squares fit for this order pair: {reason}"));
+            on_row(&row);
+            progress.inc(1);
+            out.push(row);
+        }
+        return out;
+    };
+    let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay };
+    let mut chains = estimate::Chains::new(theta_ls, &ls.alternatives);
+    for (&ki, &was_done) in order.iter().zip(done) {
+        if !was_done && stopped() {
+            break;
+        }
+        let k = plan.ks[ki];
+        let t = Instant::now();
+        let run = catch_unwind(AssertUnwindSafe(|| {
+            failpoint(pair.nb, pair.nf, ki);
+            chains.step(&prob, *sigma, k, judge, &ctx.solver, ws)
+        }));
+        if was_done {
+            continue;
+        }
+        let row = match run {
+            Ok((fit, which)) => CellRow::from_huber_of_pair(
+                &fit,
+                (pair.nb, pair.nf, delay),
+                *sigma,
+                ki,
+                if which == 0 { "chain_ls" } else { "chain_alt" },
+                t.elapsed().as_secs_f64(),
+            ),
+            Err(e) => failed(ki, format!("Huber fit panicked: {}", panic_message(e))),
+        };
+        on_row(&row);
+        progress.inc(1);
+        out.push(row);
+    }
+    out
+}
+
 /// One Huber cell of the pair whose least-squares phase is `ls`, started from theta_LS and/or
 /// `neighbour` as the plan's start strategy says.
 fn huber_cell(
@@ -306,7 +391,7 @@ fn huber_cell(
         let fit_from =
             |start: &[f64], ws: &mut Workspace| estimate::fit_huber(&prob, *sigma, k, start, judge, &ctx.solver, ws);
         match (plan.start, neighbour) {
-            (StartStrategy::Ls, _) | (_, None) => from_ls(ws),
+            (StartStrategy::Ls | StartStrategy::Chains, _) | (_, None) => from_ls(ws),
             (StartStrategy::Neighbour, Some(nb)) => (fit_from(nb, ws), "neighbour"),
             (StartStrategy::Best, Some(nb)) => {
                 let a = from_ls(ws);

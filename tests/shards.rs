@@ -130,6 +130,11 @@ fn shards_keep_continuation_chains_and_extra_starts_exact() {
 }
 
 #[test]
+fn shards_keep_the_k_chains_exact() {
+    shards_side_by_side("chains");
+}
+
+#[test]
 fn merge_names_missing_cells_and_partial_merges_what_there_is() {
     let dir = tempfile::tempdir().unwrap();
     let job = setup(dir.path(), "ls");

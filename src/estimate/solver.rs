@@ -363,6 +363,15 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
                 ws.trial[i] = ws.theta[i] + ws.delta[i];
             }
             let mut reflected = false;
+            if ws.trial.iter().any(|v| !v.is_finite()) {
+                // A degenerate system (e.g. gamma ~ 0 on noise-free data): more damping.
+                lambda *= nu;
+                nu *= 2.0;
+                if lambda > 1e20 {
+                    return finish(ws, crit, it + 1, Termination::Stalled, reflections);
+                }
+                continue;
+            }
             if !oe::is_stable(&ws.trial[nb..]) {
                 oe::reflect_unstable(&mut ws.trial[nb..]);
                 reflected = true;
