@@ -14,7 +14,8 @@
 //! - `ls`: every peer cell on its own from theta_LS and each extra start.
 //!
 //! Prints the share of cells where oesweep is no worse, the worst cases, and the work done.
-//! Environment: OESWEEP_EXTRA_STARTS overrides `solver.huber_extra_starts`.
+//! Environment: OESWEEP_EXTRA_STARTS and OESWEEP_HUBER_TOL override `solver.huber_extra_starts`
+//! and `solver.huber_tol`.
 
 use oesweep::estimate::{self, Judge, Problem, SolverOptions, Workspace};
 use rayon::prelude::*;
@@ -58,6 +59,9 @@ fn main() {
     let mut opts = SolverOptions::default();
     if let Ok(v) = std::env::var("OESWEEP_EXTRA_STARTS") {
         opts.huber_extra_starts = v.parse().expect("a count");
+    }
+    if let Ok(v) = std::env::var("OESWEEP_HUBER_TOL") {
+        opts.huber_tol = v.parse().expect("a number");
     }
     let tol = 1e-4;
     let judge = Judge::default();

@@ -50,6 +50,10 @@ pub struct SolverOptions {
     pub lambda0: f64,
     /// Huber Hessian weighting.
     pub huber_hessian: HuberHessian,
+    /// `ftol` and `xtol` of the Huber fits (the least-squares fits use `ftol`, `xtol`). Looser
+    /// than those, as scipy's default: a warm-started cell of a k chain spends its last
+    /// iterations creeping below 1e-8, far under the 1e-4 at which local minima differ.
+    pub huber_tol: f64,
     /// Extra starts of each Huber fit besides theta_LS: the runner-up least-squares minima
     /// (and a contracted theta_LS when it sits on the stability boundary). 0 = the paper's
     /// single start.
@@ -65,8 +69,16 @@ impl Default for SolverOptions {
             gtol: 1e-9,
             lambda0: 1e-3,
             huber_hessian: HuberHessian::GaussNewton,
+            huber_tol: 1e-8,
             huber_extra_starts: 2,
         }
+    }
+}
+
+impl SolverOptions {
+    /// The settings of a Huber fit: `huber_tol` as its `ftol` and `xtol`.
+    pub fn huber(&self) -> SolverOptions {
+        SolverOptions { ftol: self.huber_tol, xtol: self.huber_tol, ..self.clone() }
     }
 }
 
