@@ -116,11 +116,6 @@ pub struct HuberFit {
 /// lowest criterion wins (ties: the first).
 pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Workspace) -> LsFit {
     let guesses = init::initial_guesses(prob);
-    // The starts are explored to a looser tolerance and only the winner is polished to `ftol`:
-    // their last iterations would only sharpen minima that lose.
-    let final_opts = opts;
-    let explore_tol = std::env::var("OESWEEP_EXPLORE_TOL").ok().and_then(|v| v.parse().ok()).unwrap_or(opts.ftol);
-    let opts = &SolverOptions { ftol: explore_tol.max(opts.ftol), xtol: explore_tol.max(opts.xtol), ..opts.clone() };
     // Each guess twice: with the usual damping and with heavy initial damping (gradient-like
     // first steps, as a trust-region solver takes), which often ends in another, lower minimum.
     let damped = SolverOptions { lambda0: DAMPED_LAMBDA0, ..opts.clone() };
@@ -176,13 +171,7 @@ pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Work
         }
         alternatives.push(c);
     }
-    let mut best_sol = sols.into_iter().nth(best).expect("at least one start");
-    if final_opts.ftol < opts.ftol || final_opts.xtol < opts.xtol {
-        let polished = solver::minimise(prob, Loss::LeastSquares, &best_sol.theta, final_opts, ws);
-        if better(&polished, &best_sol) || polished.criterion == best_sol.criterion {
-            best_sol = Solution { iterations: best_sol.iterations + polished.iterations, ..polished };
-        }
-    }
+    let best_sol = sols.into_iter().nth(best).expect("at least one start");
     let mut fit = ls_from_solution(prob, best_sol, judge, opts, ws);
     fit.alternatives = alternatives;
     fit
