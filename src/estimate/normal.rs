@@ -56,6 +56,9 @@ impl Layout {
     }
 }
 
+/// Below this many weighted rows the rank-1 updates beat packing them for a matrix product.
+const PACK_MIN_ROWS: usize = 64;
+
 pub use crate::kernels::dot;
 use crate::kernels::{lagged_dots, rank1_upper};
 
@@ -70,6 +73,12 @@ pub struct NormalEquations {
     /// Rows whose weight differs from 1.
     rows: Vec<u32>,
     psi: Vec<f64>,
+    /// Packed Jacobian rows of a weighted sum (column-major, m x d), their weights, the
+    /// weighted copy when the weights differ, and the d x d product.
+    packed: Vec<f64>,
+    alpha: Vec<f64>,
+    scaled: Vec<f64>,
+    product: Vec<f64>,
 }
 
 impl NormalEquations {
@@ -119,21 +128,22 @@ impl NormalEquations {
         match w {
             Some(w) if 2 * self.rows.len() > n => {
                 h.fill(0.0);
+                self.alpha.clear();
+                self.rows.clear();
                 for (t, &wt) in w.iter().enumerate() {
                     if wt != 0.0 {
-                        lay.row(xu, xy, t, &mut self.psi);
-                        rank1_upper(h, d, &self.psi, wt);
+                        self.rows.push(t as u32);
+                        self.alpha.push(wt);
                     }
                 }
+                self.add_rows(lay, xu, xy, h);
             }
             _ => {
                 self.gram(lay, xu, xy, h);
                 if let Some(w) = w {
-                    for &t in &self.rows {
-                        let t = t as usize;
-                        lay.row(xu, xy, t, &mut self.psi);
-                        rank1_upper(h, d, &self.psi, w[t] - 1.0);
-                    }
+                    self.alpha.clear();
+                    self.alpha.extend(self.rows.iter().map(|&t| w[t as usize] - 1.0));
+                    self.add_rows(lay, xu, xy, h);
                 }
             }
         }
@@ -142,6 +152,56 @@ impl NormalEquations {
                 let v = h[i * d + j] * inv_n;
                 h[i * d + j] = v;
                 h[j * d + i] = v;
+            }
+        }
+    }
+
+    /// `h += sum_k alpha_k psi_{t_k} psi_{t_k}^T` (upper triangle) over `t_k = rows[k]`.
+    ///
+    /// Few rows go one rank-1 update at a time; more are packed into an m x d matrix P and
+    /// the sum taken as one product P^T diag(alpha) P (faer's matmul, register-tiled), which
+    /// does the same multiply-adds without a load and a store of `h` for each of them.
+    fn add_rows(&mut self, lay: &Layout, xu: &[f64], xy: &[f64], h: &mut [f64]) {
+        let d = lay.dim();
+        let m = self.rows.len();
+        if m < PACK_MIN_ROWS {
+            for (&t, &a) in self.rows.iter().zip(&self.alpha) {
+                lay.row(xu, xy, t as usize, &mut self.psi);
+                rank1_upper(h, d, &self.psi, a);
+            }
+            return;
+        }
+        self.packed.resize(m * d, 0.0);
+        for c in 0..d {
+            let (seq, sign, lag) = lay.col(c);
+            let s = if seq == Seq::U { xu } else { xy };
+            let col = &mut self.packed[c * m..(c + 1) * m];
+            for (p, &t) in col.iter_mut().zip(&self.rows) {
+                let t = t as usize;
+                *p = if t >= lag { sign * s[t - lag] } else { 0.0 };
+            }
+        }
+        // One weight for all rows (the Gauss-Newton Huber Hessian: -1 or 1) needs no copy.
+        let uniform = self.alpha.iter().all(|&a| a == self.alpha[0]);
+        let scale = if uniform { self.alpha[0] } else { 1.0 };
+        if !uniform {
+            self.scaled.resize(m * d, 0.0);
+            for c in 0..d {
+                let (src, dst) = (&self.packed[c * m..(c + 1) * m], &mut self.scaled[c * m..(c + 1) * m]);
+                for ((q, &p), &a) in dst.iter_mut().zip(src).zip(&self.alpha) {
+                    *q = a * p;
+                }
+            }
+        }
+        self.product.resize(d * d, 0.0);
+        let p = faer::MatRef::from_column_major_slice(&self.packed[..m * d], m, d);
+        let q = if uniform { p } else { faer::MatRef::from_column_major_slice(&self.scaled[..m * d], m, d) };
+        let prod = faer::MatMut::from_column_major_slice_mut(&mut self.product[..d * d], d, d);
+        faer::linalg::matmul::matmul(prod, faer::Accum::Replace, q.transpose(), p, scale, faer::Par::Seq);
+        // The product is symmetric: its column-major layout reads as row-major too.
+        for i in 0..d {
+            for j in i..d {
+                h[i * d + j] += self.product[j * d + i];
             }
         }
     }
@@ -230,16 +290,32 @@ mod tests {
 
     #[test]
     fn lagged_build_matches_explicit_jacobian() {
-        for &(nb, nf, delay, n) in
-            &[(3, 2, 1, 50), (7, 4, 1, 300), (12, 12, 1, 500), (2, 5, 3, 40), (4, 0, 0, 30), (5, 9, 2, 12)]
-        {
+        for &(nb, nf, delay, n) in &[
+            (3, 2, 1, 50),
+            (7, 4, 1, 300),
+            (12, 12, 1, 500),
+            (12, 12, 1, 2000),
+            (2, 5, 3, 40),
+            (4, 0, 0, 30),
+            (5, 9, 2, 12),
+        ] {
             let lay = Layout { nb, nf, delay };
             let (xu, xy, r) = seqs(n);
             let d = lay.dim();
-            // few reweighted rows (correction path), many (direct path), none
-            for frac in [0.0, 0.1, 0.9] {
+            // few reweighted rows (correction path), many (direct path), none; IRLS-like
+            // weights and Gauss-Newton ones (0 or 1: a uniform weight in either path); at the
+            // larger n both paths have enough rows to be packed into a matrix product.
+            for (frac, gauss_newton) in [(0.0, false), (0.1, false), (0.9, false), (0.1, true), (0.9, true)] {
                 let w: Vec<f64> = (0..n)
-                    .map(|t| if ((t * 7919) % 100) as f64 / 100.0 < frac { (t % 3) as f64 * 0.25 } else { 1.0 })
+                    .map(|t| {
+                        if ((t * 7919) % 100) as f64 / 100.0 >= frac {
+                            1.0
+                        } else if gauss_newton {
+                            0.0
+                        } else {
+                            (t % 3) as f64 * 0.25
+                        }
+                    })
                     .collect();
                 let (he, ge) = explicit(&lay, &xu, &xy, &w, &r);
                 let mut ne = NormalEquations::default();
