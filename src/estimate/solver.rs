@@ -318,16 +318,13 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
             }
             Loss::Huber { gamma } => {
                 let irls = opts.huber_hessian == HuberHessian::Irls;
+                // Branch-free (the L1/L2 split of consecutive residuals is unpredictable).
+                let l1_weight = |a: f64| if irls { gamma / a } else { 0.0 };
                 for t in 0..n {
                     let e = prob.y[t] - ws.yhat[t];
                     let a = e.abs();
-                    if a <= gamma {
-                        ws.r[t] = e;
-                        ws.w[t] = 1.0;
-                    } else {
-                        ws.r[t] = gamma.copysign(e);
-                        ws.w[t] = if irls { gamma / a } else { 0.0 };
-                    }
+                    ws.r[t] = e.clamp(-gamma, gamma);
+                    ws.w[t] = if a <= gamma { 1.0 } else { l1_weight(a) };
                 }
             }
         }
