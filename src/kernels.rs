@@ -70,6 +70,61 @@ fn lagged_dots_impl<const FMA: bool>(a: &[f64], b: &[f64], out: &mut [f64]) {
 }
 
 /// `h += alpha v v^T` on the upper triangle of the d x d row-major `h`.
+/// The six correlations of the normal equations at lags `0..out.len()`:
+/// `out[l] = [R(u,u), R(y,y), R(u,y), R(y,u), R(u,r), R(y,r)](l)`, `R(a,b)(l) = sum_s a[s] b[s+l]`.
+///
+/// One pass: per step the five loads `u[s], y[s], u[s+l], y[s+l], r[s+l]` feed six
+/// multiply-adds, where six separate dot products load twelve. Blocked over s like
+/// [`lagged_dots_impl`].
+#[inline(always)]
+fn correlations_impl<const FMA: bool>(u: &[f64], y: &[f64], r: &[f64], out: &mut [[f64; 6]]) {
+    const W: usize = 4;
+    let n = u.len().min(y.len()).min(r.len());
+    for o in out.iter_mut() {
+        *o = [0.0; 6];
+    }
+    let mut s0 = 0;
+    while s0 < n {
+        let s1 = (s0 + LAG_BLOCK).min(n);
+        for (l, o) in out.iter_mut().enumerate() {
+            let end = s1.min(n.saturating_sub(l));
+            if end <= s0 {
+                break;
+            }
+            let len = end - s0;
+            let (ua, ya) = (&u[s0..end], &y[s0..end]);
+            let (ub, yb, rb) = (&u[s0 + l..end + l], &y[s0 + l..end + l], &r[s0 + l..end + l]);
+            let mut acc = [[0.0f64; W]; 6];
+            let chunks = len / W;
+            let it = ua.chunks_exact(W).zip(ya.chunks_exact(W)).zip(ub.chunks_exact(W)).zip(yb.chunks_exact(W));
+            for ((((a, b), p), q), z) in it.zip(rb.chunks_exact(W)) {
+                for k in 0..W {
+                    acc[0][k] = madd::<FMA>(a[k], p[k], acc[0][k]);
+                    acc[1][k] = madd::<FMA>(b[k], q[k], acc[1][k]);
+                    acc[2][k] = madd::<FMA>(a[k], q[k], acc[2][k]);
+                    acc[3][k] = madd::<FMA>(b[k], p[k], acc[3][k]);
+                    acc[4][k] = madd::<FMA>(a[k], z[k], acc[4][k]);
+                    acc[5][k] = madd::<FMA>(b[k], z[k], acc[5][k]);
+                }
+            }
+            for i in chunks * W..len {
+                let (a, b) = (ua[i], ya[i]);
+                let (p, q, z) = (ub[i], yb[i], rb[i]);
+                acc[0][0] = madd::<FMA>(a, p, acc[0][0]);
+                acc[1][0] = madd::<FMA>(b, q, acc[1][0]);
+                acc[2][0] = madd::<FMA>(a, q, acc[2][0]);
+                acc[3][0] = madd::<FMA>(b, p, acc[3][0]);
+                acc[4][0] = madd::<FMA>(a, z, acc[4][0]);
+                acc[5][0] = madd::<FMA>(b, z, acc[5][0]);
+            }
+            for (oj, aj) in o.iter_mut().zip(&acc) {
+                *oj += (aj[0] + aj[2]) + (aj[1] + aj[3]);
+            }
+        }
+        s0 = s1;
+    }
+}
+
 #[inline(always)]
 fn rank1_upper_impl<const FMA: bool>(h: &mut [f64], d: usize, v: &[f64], alpha: f64) {
     for i in 0..d {
@@ -181,6 +236,9 @@ mod base {
     pub fn rank1_upper(h: &mut [f64], d: usize, v: &[f64], alpha: f64) {
         super::rank1_upper_impl::<false>(h, d, v, alpha)
     }
+    pub fn correlations(u: &[f64], y: &[f64], r: &[f64], out: &mut [[f64; 6]]) {
+        super::correlations_impl::<false>(u, y, r, out)
+    }
     pub fn inv_f(f: &[f64], x: &mut [f64]) {
         use super::*;
         inv_f_dispatch!(false, f, x, 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24);
@@ -203,6 +261,66 @@ mod fma {
     #[target_feature(enable = "avx2,fma")]
     pub unsafe fn rank1_upper(h: &mut [f64], d: usize, v: &[f64], alpha: f64) {
         super::rank1_upper_impl::<true>(h, d, v, alpha)
+    }
+    /// [`super::correlations_impl`] with explicit 256-bit vectors: left to itself the compiler
+    /// vectorised the six interleaved sums only partly (half the lanes scalar).
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn correlations(u: &[f64], y: &[f64], r: &[f64], out: &mut [[f64; 6]]) {
+        use std::arch::x86_64::*;
+        let n = u.len().min(y.len()).min(r.len());
+        for o in out.iter_mut() {
+            *o = [0.0; 6];
+        }
+        let hsum = |v: __m256d| {
+            let mut a = [0.0; 4];
+            // SAFETY: a holds four f64.
+            unsafe { _mm256_storeu_pd(a.as_mut_ptr(), v) };
+            (a[0] + a[2]) + (a[1] + a[3])
+        };
+        let mut s0 = 0;
+        while s0 < n {
+            let s1 = (s0 + super::LAG_BLOCK).min(n);
+            for (l, o) in out.iter_mut().enumerate() {
+                let end = s1.min(n.saturating_sub(l));
+                if end <= s0 {
+                    break;
+                }
+                let mut acc = [_mm256_setzero_pd(); 6];
+                let mut i = s0;
+                // SAFETY: i + 3 < end <= n - l, so every load below is inside its slice.
+                unsafe {
+                    let (pu, py, pr) = (u.as_ptr(), y.as_ptr(), r.as_ptr());
+                    while i + 4 <= end {
+                        let a = _mm256_loadu_pd(pu.add(i));
+                        let b = _mm256_loadu_pd(py.add(i));
+                        let p = _mm256_loadu_pd(pu.add(i + l));
+                        let q = _mm256_loadu_pd(py.add(i + l));
+                        let z = _mm256_loadu_pd(pr.add(i + l));
+                        acc[0] = _mm256_fmadd_pd(a, p, acc[0]);
+                        acc[1] = _mm256_fmadd_pd(b, q, acc[1]);
+                        acc[2] = _mm256_fmadd_pd(a, q, acc[2]);
+                        acc[3] = _mm256_fmadd_pd(b, p, acc[3]);
+                        acc[4] = _mm256_fmadd_pd(a, z, acc[4]);
+                        acc[5] = _mm256_fmadd_pd(b, z, acc[5]);
+                        i += 4;
+                    }
+                }
+                let mut tail = [0.0; 6];
+                for i in i..end {
+                    let (a, b, p, q, z) = (u[i], y[i], u[i + l], y[i + l], r[i + l]);
+                    tail[0] = a.mul_add(p, tail[0]);
+                    tail[1] = b.mul_add(q, tail[1]);
+                    tail[2] = a.mul_add(q, tail[2]);
+                    tail[3] = b.mul_add(p, tail[3]);
+                    tail[4] = a.mul_add(z, tail[4]);
+                    tail[5] = b.mul_add(z, tail[5]);
+                }
+                for j in 0..6 {
+                    o[j] += hsum(acc[j]) + tail[j];
+                }
+            }
+            s0 = s1;
+        }
     }
     #[target_feature(enable = "avx2,fma")]
     pub unsafe fn inv_f(f: &[f64], x: &mut [f64]) {
@@ -247,6 +365,18 @@ pub fn lagged_dots(a: &[f64], b: &[f64], out: &mut [f64]) {
         return unsafe { fma::lagged_dots(a, b, out) };
     }
     base::lagged_dots(a, b, out)
+}
+
+/// `out[l] = [R(u,u), R(y,y), R(u,y), R(y,u), R(u,r), R(y,r)](l)` for `l = 0..out.len()`,
+/// `R(a,b)(l) = sum_s a[s] b[s+l]` over the common length.
+#[inline]
+pub fn correlations(u: &[f64], y: &[f64], r: &[f64], out: &mut [[f64; 6]]) {
+    #[cfg(target_arch = "x86_64")]
+    if has_fma() {
+        // SAFETY: the CPU supports the features the function is compiled for.
+        return unsafe { fma::correlations(u, y, r, out) };
+    }
+    base::correlations(u, y, r, out)
 }
 
 /// `h += alpha v v^T` on the upper triangle of the d x d row-major matrix `h`.
@@ -319,6 +449,32 @@ mod tests {
                     let want: f64 =
                         if l < len { a[..len - l].iter().zip(&b[l..]).map(|(x, y)| x * y).sum() } else { 0.0 };
                     assert!((out[l] - want).abs() < 1e-10 && (out2[l] - want).abs() < 1e-10, "len {len} lag {l}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn fused_correlations_agree_with_lagged_dots() {
+        for len in [0, 3, 17, 1001, 2100] {
+            let seq = |w: f64| (0..len).map(|i| (i as f64 * w).sin()).collect::<Vec<f64>>();
+            let (u, y, r) = (seq(0.37), seq(0.11), seq(0.53));
+            for lags in [0, 1, 5, 16] {
+                let mut out = vec![[f64::NAN; 6]; lags];
+                correlations(&u, &y, &r, &mut out);
+                let mut out2 = vec![[f64::NAN; 6]; lags];
+                base::correlations(&u, &y, &r, &mut out2);
+                for (j, (a, b)) in [(&u, &u), (&y, &y), (&u, &y), (&y, &u), (&u, &r), (&y, &r)].into_iter().enumerate()
+                {
+                    let mut want = vec![0.0; lags];
+                    lagged_dots(a, b, &mut want);
+                    for l in 0..lags {
+                        let tol = 1e-10 * (1.0 + want[l].abs());
+                        assert!(
+                            (out[l][j] - want[l]).abs() <= tol && (out2[l][j] - want[l]).abs() <= tol,
+                            "{len} {j} {l}"
+                        );
+                    }
                 }
             }
         }

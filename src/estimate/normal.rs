@@ -65,11 +65,8 @@ use crate::kernels::{lagged_dots, rank1_upper};
 /// Reusable buffers for [`NormalEquations::build`].
 #[derive(Default, Debug)]
 pub struct NormalEquations {
-    /// `R_uu(L)`, `R_yy(L)`, `R_uy(L) = sum xu[s] xy[s+L]`, `R_yu(L) = sum xy[s] xu[s+L]`.
-    ruu: Vec<f64>,
-    ryy: Vec<f64>,
-    ruy: Vec<f64>,
-    ryu: Vec<f64>,
+    /// Per lag L: `R_uu, R_yy, R_uy, R_yu, R_ur, R_yr` with `R_ab(L) = sum_s a[s] b[s+L]`.
+    corr: Vec<[f64; 6]>,
     /// Rows whose weight differs from 1.
     rows: Vec<u32>,
     psi: Vec<f64>,
@@ -102,31 +99,46 @@ impl NormalEquations {
         self.psi.resize(d, 0.0);
         let inv_n = 1.0 / n as f64;
 
+        self.rows.clear();
+        if let Some(w) = w {
+            self.rows.extend((0..n as u32).filter(|&t| w[t as usize] != 1.0));
+        }
+        // Most rows reweighted: the sum is taken over them directly and needs no Gram matrix.
+        let direct = w.is_some() && 2 * self.rows.len() > n;
+
         // g_c = sign_c sum_s s_c[s] r[s + lag_c]: consecutive lags of (xu, r) from d and of
         // (xy, r) from 1, i.e. lagged dot products of a shifted r.
-        let (nb, dl) = (lay.nb, lay.delay);
-        if dl < n {
-            lagged_dots(&xu[..n - dl], &r[dl..], &mut g[..nb]);
+        let (nb, nf, dl) = (lay.nb, lay.nf, lay.delay);
+        if direct {
+            if dl < n {
+                lagged_dots(&xu[..n - dl], &r[dl..], &mut g[..nb]);
+            } else {
+                g[..nb].fill(0.0);
+            }
+            if n > 1 {
+                lagged_dots(&xy[..n - 1], &r[1..], &mut g[nb..d]);
+            } else {
+                g[nb..d].fill(0.0);
+            }
         } else {
-            g[..nb].fill(0.0);
-        }
-        if n > 1 {
-            lagged_dots(&xy[..n - 1], &r[1..], &mut g[nb..d]);
-        } else {
-            g[nb..d].fill(0.0);
+            // All correlations the Gram matrix and g need, in one pass.
+            self.corr.resize((dl + nb).max(nf + 1), [0.0; 6]);
+            crate::kernels::correlations(xu, xy, r, &mut self.corr);
+            for i in 0..nb {
+                g[i] = self.corr[dl + i][4];
+            }
+            for j in 0..nf {
+                g[nb + j] = self.corr[1 + j][5];
+            }
         }
         for (c, gc) in g[..d].iter_mut().enumerate() {
             let sign = if c < nb { 1.0 } else { -1.0 };
             *gc *= sign * inv_n;
         }
 
-        self.rows.clear();
-        if let Some(w) = w {
-            self.rows.extend((0..n as u32).filter(|&t| w[t as usize] != 1.0));
-        }
         let h = &mut h[..d * d];
         match w {
-            Some(w) if 2 * self.rows.len() > n => {
+            Some(w) if direct => {
                 h.fill(0.0);
                 self.alpha.clear();
                 self.rows.clear();
@@ -210,18 +222,8 @@ impl NormalEquations {
     fn gram(&mut self, lay: &Layout, xu: &[f64], xy: &[f64], h: &mut [f64]) {
         let n = xu.len();
         let d = lay.dim();
-        let (nb, nf, dl) = (lay.nb, lay.nf, lay.delay);
-        self.ruu.resize(nb, 0.0);
-        lagged_dots(xu, xu, &mut self.ruu);
-        self.ryy.resize(nf, 0.0);
-        lagged_dots(xy, xy, &mut self.ryy);
-        // lag_u - lag_y ranges over [d - nf, d + nb - 2]; split by sign.
-        if nf > 0 {
-            self.ruy.resize((dl + nb).saturating_sub(1), 0.0);
-            lagged_dots(xu, xy, &mut self.ruy);
-            self.ryu.resize(nf.saturating_sub(dl) + 1, 0.0);
-            lagged_dots(xy, xu, &mut self.ryu);
-        }
+        // self.corr holds R_uu, R_yy, R_uy, R_yu at every lag difference that occurs
+        // (lag_u - lag_y ranges over [d - nf, d + nb - 2]).
         for c in 0..d {
             let (sc, gc, lc) = lay.col(c);
             for e in c..d {
@@ -231,12 +233,12 @@ impl NormalEquations {
                 let lag = la - lb;
                 let a = if sa == Seq::U { xu } else { xy };
                 let b = if sb == Seq::U { xu } else { xy };
-                let full = match (sa, sb) {
-                    (Seq::U, Seq::U) => self.ruu[lag],
-                    (Seq::Y, Seq::Y) => self.ryy[lag],
-                    (Seq::U, Seq::Y) => self.ruy[lag],
-                    (Seq::Y, Seq::U) => self.ryu[lag],
-                };
+                let full = self.corr[lag][match (sa, sb) {
+                    (Seq::U, Seq::U) => 0,
+                    (Seq::Y, Seq::Y) => 1,
+                    (Seq::U, Seq::Y) => 2,
+                    (Seq::Y, Seq::U) => 3,
+                }];
                 // Terms s in [N - la, N - 1 - lag] belong to t >= N and must not count.
                 let mut tail = 0.0;
                 if la < n {
