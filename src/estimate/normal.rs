@@ -124,11 +124,11 @@ impl NormalEquations {
             // All correlations the Gram matrix and g need, in one pass.
             self.corr.resize((dl + nb).max(nf + 1), [0.0; 6]);
             crate::kernels::correlations(xu, xy, r, &mut self.corr);
-            for i in 0..nb {
-                g[i] = self.corr[dl + i][4];
+            for (gi, c) in g[..nb].iter_mut().zip(&self.corr[dl..]) {
+                *gi = c[4];
             }
-            for j in 0..nf {
-                g[nb + j] = self.corr[1 + j][5];
+            for (gj, c) in g[nb..d].iter_mut().zip(&self.corr[1..]) {
+                *gj = c[5];
             }
         }
         for (c, gc) in g[..d].iter_mut().enumerate() {
