@@ -170,39 +170,48 @@ fn run_in_pool(
         (true, pair.nb as u32, pair.nf as u32, Some(cell.k_index as u32))
     };
     progress.message("least-squares phase");
-    // (the pair's fit, whether it was computed in this run); None: stopped before it.
-    let ls: Vec<Option<(PairLs, bool)>> = plan
-        .pairs
+    // The least-squares phase of one pair: (the pair's fit, whether it was computed in this
+    // run); None: stopped before it.
+    let pair_ls = |pair: &crate::plan::Pair, p: usize, ws: &mut Workspace| -> Option<(PairLs, bool)> {
+        let resumed = done.get(&(false, pair.nb as u32, pair.nf as u32, None));
+        let all_done = (0..plan.ks.len()).all(|k| done.contains_key(&huber_key(Cell { pair: p, k_index: k })));
+        if let (Some(row), true) = (resumed, all_done) {
+            return Some((PairLs::from_row(row.clone(), Vec::new()), false));
+        }
+        if stopped() {
+            return None;
+        }
+        let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay };
+        let t = Instant::now();
+        // A resumed pair with cells left is fitted again for its extra Huber starts: the
+        // least-squares phase is deterministic, so this reproduces the interrupted run.
+        let (row, alternatives) =
+            match catch_unwind(AssertUnwindSafe(|| estimate::fit_ls(&prob, &judge, &ctx.solver, ws))) {
+                Ok(fit) => (CellRow::from_ls(&fit, t.elapsed().as_secs_f64()), fit.alternatives),
+                Err(e) => {
+                    let reason = format!("least-squares phase panicked: {}", panic_message(e));
+                    (CellRow::failed(Method::Ls, pair.nb, pair.nf, delay, None, reason), Vec::new())
+                }
+            };
+        if let Some(row) = resumed {
+            return Some((PairLs::from_row(row.clone(), alternatives), false));
+        }
+        on_row(&row);
+        Some((PairLs::from_row(row, alternatives), true))
+    };
+    // Largest pairs first, one task each, so a phase ends on small pairs rather than on one
+    // large pair while the other workers idle; the results go back into plan order.
+    let by_cost = plan.pairs_by_cost();
+    let mut ls: Vec<(usize, Option<(PairLs, bool)>)> = by_cost
         .par_iter()
-        .map_init(Workspace::new, |ws, pair| {
-            let resumed = done.get(&(false, pair.nb as u32, pair.nf as u32, None));
-            let p = plan.pairs.iter().position(|q| q == pair).expect("pair of the plan");
-            let all_done = (0..plan.ks.len()).all(|k| done.contains_key(&huber_key(Cell { pair: p, k_index: k })));
-            if let (Some(row), true) = (resumed, all_done) {
-                return Some((PairLs::from_row(row.clone(), Vec::new()), false));
-            }
-            if stopped() {
-                return None;
-            }
-            let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay };
-            let t = Instant::now();
-            // A resumed pair with cells left is fitted again for its extra Huber starts: the
-            // least-squares phase is deterministic, so this reproduces the interrupted run.
-            let (row, alternatives) =
-                match catch_unwind(AssertUnwindSafe(|| estimate::fit_ls(&prob, &judge, &ctx.solver, ws))) {
-                    Ok(fit) => (CellRow::from_ls(&fit, t.elapsed().as_secs_f64()), fit.alternatives),
-                    Err(e) => {
-                        let reason = format!("least-squares phase panicked: {}", panic_message(e));
-                        (CellRow::failed(Method::Ls, pair.nb, pair.nf, delay, None, reason), Vec::new())
-                    }
-                };
-            if let Some(row) = resumed {
-                return Some((PairLs::from_row(row.clone(), alternatives), false));
-            }
-            on_row(&row);
-            Some((PairLs::from_row(row, alternatives), true))
+        .with_max_len(1)
+        .map_init(Workspace::new, |ws, &p| {
+            let pair = &plan.pairs[p];
+            (p, pair_ls(pair, p, ws))
         })
         .collect();
+    ls.sort_by_key(|(p, _)| *p);
+    let ls: Vec<Option<(PairLs, bool)>> = ls.into_iter().map(|(_, v)| v).collect();
     progress.message("Huber phase");
 
     let huber_rows: Vec<CellRow> = match plan.start {
@@ -224,9 +233,10 @@ fn run_in_pool(
             .collect(),
         StartStrategy::Chains => {
             let order = plan.k_ascending();
-            (0..plan.pairs.len())
-                .into_par_iter()
-                .map_init(Workspace::new, |ws, p| {
+            by_cost
+                .par_iter()
+                .with_max_len(1)
+                .map_init(Workspace::new, |ws, &p| {
                     let Some((pair_ls, _)) = &ls[p] else { return Vec::new() };
                     let keys: Vec<bool> =
                         order.iter().map(|&ki| done.contains_key(&huber_key(Cell { pair: p, k_index: ki }))).collect();
