@@ -44,6 +44,25 @@ fn dot_impl<const FMA: bool>(a: &[f64], b: &[f64]) -> f64 {
 /// Samples per block of [`lagged_dots_impl`]: two blocks (plus the lags) stay in L1.
 const LAG_BLOCK: usize = 1024;
 
+/// Visit the terms of lagged sums `sum_{s + l < n} ...` block by block: for each block of
+/// [`LAG_BLOCK`] samples and each lag `l < lags`, `f(l, s0, end)` with the block's terms
+/// `s in [s0, end)`. Each block is read for all lags while it sits in L1.
+#[inline(always)]
+fn blocked_lags(n: usize, lags: usize, mut f: impl FnMut(usize, usize, usize)) {
+    let mut s0 = 0;
+    while s0 < n {
+        let s1 = (s0 + LAG_BLOCK).min(n);
+        for l in 0..lags {
+            let end = s1.min(n.saturating_sub(l));
+            if end <= s0 {
+                break;
+            }
+            f(l, s0, end);
+        }
+        s0 = s1;
+    }
+}
+
 /// `out[l] = sum_{s=0}^{n-1-l} a[s] b[s+l]` for `l = 0..out.len()`, n = common length.
 ///
 /// Blocked over s: all lags of one block of `a` and `b` are taken while the block sits in L1.
@@ -54,22 +73,9 @@ const LAG_BLOCK: usize = 1024;
 fn lagged_dots_impl<const FMA: bool>(a: &[f64], b: &[f64], out: &mut [f64]) {
     let n = a.len().min(b.len());
     out.fill(0.0);
-    let mut s0 = 0;
-    while s0 < n {
-        let s1 = (s0 + LAG_BLOCK).min(n);
-        for (l, o) in out.iter_mut().enumerate() {
-            // Terms s in [s0, s1) with s + l < n.
-            let end = s1.min(n.saturating_sub(l));
-            if end <= s0 {
-                break;
-            }
-            *o += dot_impl::<FMA>(&a[s0..end], &b[s0 + l..end + l]);
-        }
-        s0 = s1;
-    }
+    blocked_lags(n, out.len(), |l, s0, end| out[l] += dot_impl::<FMA>(&a[s0..end], &b[s0 + l..end + l]));
 }
 
-/// `h += alpha v v^T` on the upper triangle of the d x d row-major `h`.
 /// The six correlations of the normal equations at lags `0..out.len()`:
 /// `out[l] = [R(u,u), R(y,y), R(u,y), R(y,u), R(u,r), R(y,r)](l)`, `R(a,b)(l) = sum_s a[s] b[s+l]`.
 ///
@@ -83,14 +89,10 @@ fn correlations_impl<const FMA: bool>(u: &[f64], y: &[f64], r: &[f64], out: &mut
     for o in out.iter_mut() {
         *o = [0.0; 6];
     }
-    let mut s0 = 0;
-    while s0 < n {
-        let s1 = (s0 + LAG_BLOCK).min(n);
-        for (l, o) in out.iter_mut().enumerate() {
-            let end = s1.min(n.saturating_sub(l));
-            if end <= s0 {
-                break;
-            }
+    let lags = out.len();
+    blocked_lags(n, lags, |l, s0, end| {
+        let o = &mut out[l];
+        {
             let len = end - s0;
             let (ua, ya) = (&u[s0..end], &y[s0..end]);
             let (ub, yb, rb) = (&u[s0 + l..end + l], &y[s0 + l..end + l], &r[s0 + l..end + l]);
@@ -121,10 +123,10 @@ fn correlations_impl<const FMA: bool>(u: &[f64], y: &[f64], r: &[f64], out: &mut
                 *oj += (aj[0] + aj[2]) + (aj[1] + aj[3]);
             }
         }
-        s0 = s1;
-    }
+    });
 }
 
+/// `h += alpha v v^T` on the upper triangle of the d x d row-major `h`.
 #[inline(always)]
 fn rank1_upper_impl<const FMA: bool>(h: &mut [f64], d: usize, v: &[f64], alpha: f64) {
     for i in 0..d {
@@ -277,14 +279,10 @@ mod fma {
             unsafe { _mm256_storeu_pd(a.as_mut_ptr(), v) };
             (a[0] + a[2]) + (a[1] + a[3])
         };
-        let mut s0 = 0;
-        while s0 < n {
-            let s1 = (s0 + super::LAG_BLOCK).min(n);
-            for (l, o) in out.iter_mut().enumerate() {
-                let end = s1.min(n.saturating_sub(l));
-                if end <= s0 {
-                    break;
-                }
+        let lags = out.len();
+        super::blocked_lags(n, lags, |l, s0, end| {
+            let o = &mut out[l];
+            {
                 let mut acc = [_mm256_setzero_pd(); 6];
                 let mut i = s0;
                 // SAFETY: i + 3 < end <= n - l, so every load below is inside its slice.
@@ -319,8 +317,7 @@ mod fma {
                     o[j] += hsum(acc[j]) + tail[j];
                 }
             }
-            s0 = s1;
-        }
+        });
     }
     #[target_feature(enable = "avx2,fma")]
     pub unsafe fn inv_f(f: &[f64], x: &mut [f64]) {
