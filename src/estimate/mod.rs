@@ -213,20 +213,8 @@ pub fn fit_huber_starts(
     opts: &SolverOptions,
     ws: &mut Workspace,
 ) -> (HuberFit, usize) {
-    let loss = Loss::Huber { gamma: k * sigma };
-    let opts = &opts.huber();
-    let mut best = solver::minimise(prob, loss, theta_ls, opts, ws);
-    let mut which = 0;
-    for (i, start) in alternatives.iter().enumerate() {
-        let sol = solver::minimise(prob, loss, start, opts, ws);
-        if sol.criterion < best.criterion || !best.criterion.is_finite() {
-            best = sol;
-            which = i + 1;
-        }
-    }
-    // Only the winner is judged; the workspace holds the last fit's simulation.
-    let fit = huber_from_solution(prob, sigma, k, &best, judge, ws, which != alternatives.len());
-    (fit, which)
+    // One step of fresh chains is exactly this: every start once, the lowest W wins.
+    Chains::new(theta_ls, alternatives).step(prob, sigma, k, judge, opts, ws)
 }
 
 /// Continuation chains along k for one order pair (start strategy `chains`, METHOD.md 5).
