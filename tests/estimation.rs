@@ -229,3 +229,51 @@ fn chains_recover_the_truth_merge_duplicates_and_keep_the_best() {
         assert!(h2.criterion <= h1.criterion * (1.0 + 1e-12), "k={k}: {} > {}", h2.criterion, h1.criterion);
     }
 }
+
+/// A warm-started cell (`warm_lambda0`) ends at a minimum (polishing it with tight tolerances
+/// changes W by less than 1e-7) in fewer iterations than with the cold damping `lambda0`;
+/// `lambda0 = 0` (a pure Gauss-Newton first step) is allowed, and a rejected step from it still
+/// raises the damping (it used to stay 0 and loop forever).
+#[test]
+fn warm_damping_converges_to_a_minimum_in_fewer_iterations() {
+    let (b, f) = oe1010();
+    let u = binary_input(4000, 3, 10.0, 7);
+    let mut rng = Lcg(5);
+    let y: Vec<f64> = oe::simulate_vec(&b, &f, 1, &u)
+        .iter()
+        .map(|v| v + rng.normal() + if rng.next() < 0.05 { 6.0 } else { 0.0 })
+        .collect();
+    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1 };
+    let (judge, mut ws) = (Judge::default(), Workspace::new());
+    let opts = SolverOptions::default();
+    let cold = SolverOptions { warm_lambda0: opts.lambda0, ..opts.clone() };
+    let tight = SolverOptions { ftol: 1e-14, xtol: 1e-14, gtol: 1e-14, huber_tol: 1e-14, ..opts.clone() };
+    let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
+    let ks: Vec<f64> = (0..12).map(|i| 0.1 * 1.1f64.powi(i)).collect();
+    let mut warm_chain = estimate::Chains::new(&ls.theta(), &[]);
+    let mut cold_chain = estimate::Chains::new(&ls.theta(), &[]);
+    let (mut warm_its, mut cold_its) = (0, 0);
+    for (i, &k) in ks.iter().enumerate() {
+        let (w, _) = warm_chain.step(&prob, ls.sigma, k, &judge, &opts, &mut ws);
+        let (c, _) = cold_chain.step(&prob, ls.sigma, k, &judge, &cold, &mut ws);
+        assert!(w.termination.converged(), "{:?}", w.termination);
+        let polished = estimate::fit_huber(&prob, ls.sigma, k, &[&w.b[..], &w.f[..]].concat(), &judge, &tight, &mut ws);
+        assert!(
+            polished.criterion >= w.criterion * (1.0 - 1e-7),
+            "k={k}: {} polishes to {}",
+            w.criterion,
+            polished.criterion
+        );
+        if i == 0 {
+            assert_eq!(w.iterations, c.iterations, "the first cell is a cold start in both");
+        } else {
+            warm_its += w.iterations;
+            cold_its += c.iterations;
+        }
+    }
+    assert!(warm_its < cold_its, "warm {warm_its} iterations, cold {cold_its}");
+
+    let gn = SolverOptions { lambda0: 0.0, ..opts.clone() };
+    let sol = solver::minimise(&prob, Loss::LeastSquares, &estimate::init::initial_guesses(&prob)[0], &gn, &mut ws);
+    assert!(sol.termination.converged(), "{:?}", sol.termination);
+}

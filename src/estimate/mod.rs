@@ -230,6 +230,8 @@ pub fn fit_huber_starts(
 pub struct Chains {
     /// Current point of each chain (None: merged into an earlier chain).
     points: Vec<Option<Vec<f64>>>,
+    /// The points are minima at the previous k (after the first step), not cold starts.
+    warm: bool,
 }
 
 impl Chains {
@@ -239,7 +241,7 @@ impl Chains {
     /// Chains from `theta_ls` (chain 0) and each of `alternatives`.
     pub fn new(theta_ls: &[f64], alternatives: &[Vec<f64>]) -> Self {
         let points = std::iter::once(theta_ls.to_vec()).chain(alternatives.iter().cloned()).map(Some).collect();
-        Chains { points }
+        Chains { points, warm: false }
     }
 
     /// Chains still running.
@@ -261,7 +263,8 @@ impl Chains {
         ws: &mut Workspace,
     ) -> (HuberFit, usize) {
         let loss = Loss::Huber { gamma: k * sigma };
-        let opts = &opts.huber();
+        let opts = &if self.warm { opts.huber_warm() } else { opts.huber() };
+        self.warm = true;
         let mut sols: Vec<Option<Solution>> = Vec::with_capacity(self.points.len());
         for point in &self.points {
             sols.push(point.as_ref().map(|p| solver::minimise(prob, loss, p, opts, ws)));
