@@ -329,9 +329,14 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     if s.max_iterations == 0 {
         return Err(bad("solver.max_iterations", "must be at least 1".into()));
     }
-    for (name, v) in
-        [("ftol", s.ftol), ("xtol", s.xtol), ("gtol", s.gtol), ("lambda0", s.lambda0), ("huber_tol", s.huber_tol)]
-    {
+    for (name, v) in [
+        ("ftol", s.ftol),
+        ("xtol", s.xtol),
+        ("gtol", s.gtol),
+        ("lambda0", s.lambda0),
+        ("warm_lambda0", s.warm_lambda0),
+        ("huber_tol", s.huber_tol),
+    ] {
         if !(v.is_finite() && v >= 0.0) {
             return Err(bad(&format!("solver.{name}"), format!("must be a non-negative number, got {v}")));
         }

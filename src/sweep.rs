@@ -398,8 +398,10 @@ fn huber_cell(
                 estimate::fit_huber_starts(&prob, *sigma, k, theta_ls, &ls.alternatives, judge, &ctx.solver, ws);
             (fit, if which == 0 { "ls" } else { "ls_alt" })
         };
+        // The neighbour's solution is a warm start (the minimum at the next k).
+        let warm = SolverOptions { lambda0: ctx.solver.warm_lambda0, ..ctx.solver.clone() };
         let fit_from =
-            |start: &[f64], ws: &mut Workspace| estimate::fit_huber(&prob, *sigma, k, start, judge, &ctx.solver, ws);
+            |start: &[f64], ws: &mut Workspace| estimate::fit_huber(&prob, *sigma, k, start, judge, &warm, ws);
         match (plan.start, neighbour) {
             (StartStrategy::Ls | StartStrategy::Chains, _) | (_, None) => from_ls(ws),
             (StartStrategy::Neighbour, Some(nb)) => (fit_from(nb, ws), "neighbour"),
