@@ -171,10 +171,17 @@ fn inv_f_impl<const M: usize, const FMA: bool>(f: &[f64], x: &mut [f64]) {
 
 #[inline(always)]
 fn fir_impl<const FMA: bool>(b: &[f64], delay: usize, u: &[f64], out: &mut [f64]) {
+    fir_range_impl::<FMA>(b, delay, u, out, 0, u.len())
+}
+
+/// `out_t` of [`fir`] for `t` in `t0..t1` only (`u` must hold samples up to `t1 - delay`). Each
+/// output sums its taps in the same order whatever the range, so the result does not depend
+/// on how a signal is cut into ranges.
+#[inline(always)]
+fn fir_range_impl<const FMA: bool>(b: &[f64], delay: usize, u: &[f64], out: &mut [f64], t0: usize, t1: usize) {
     // Blocks of W outputs accumulate every tap in registers: one store per output instead of
     // a load and a store per output and tap (the tap-by-tap loop was store-bound).
     const W: usize = 8;
-    let n = u.len();
     let max_lag = delay + b.len().saturating_sub(1);
     let scalar = |t: usize| {
         let mut acc = 0.0;
@@ -186,24 +193,24 @@ fn fir_impl<const FMA: bool>(b: &[f64], delay: usize, u: &[f64], out: &mut [f64]
         }
         acc
     };
-    let head = max_lag.min(n);
-    for (t, o) in out[..head].iter_mut().enumerate() {
-        *o = scalar(t);
+    let head = max_lag.clamp(t0, t1);
+    for (t, o) in out[t0..head].iter_mut().enumerate() {
+        *o = scalar(t0 + t);
     }
-    let mut t0 = head;
-    while t0 + W <= n {
+    let mut t = head;
+    while t + W <= t1 {
         let mut acc = [0.0; W];
         for (i, &bi) in b.iter().enumerate() {
-            let start = t0 - delay - i;
+            let start = t - delay - i;
             let x: &[f64; W] = u[start..start + W].try_into().expect("W samples");
             for k in 0..W {
                 acc[k] = madd::<FMA>(bi, x[k], acc[k]);
             }
         }
-        out[t0..t0 + W].copy_from_slice(&acc);
-        t0 += W;
+        out[t..t + W].copy_from_slice(&acc);
+        t += W;
     }
-    for (t, o) in out.iter_mut().enumerate().skip(t0) {
+    for (t, o) in out[t..t1].iter_mut().enumerate().map(|(i, o)| (t + i, o)) {
         *o = scalar(t);
     }
 }
@@ -328,6 +335,105 @@ mod fma {
     pub unsafe fn fir(b: &[f64], delay: usize, u: &[f64], out: &mut [f64]) {
         super::fir_impl::<true>(b, delay, u, out)
     }
+
+    use std::arch::x86_64::*;
+
+    /// One sample of two `1/F` recursions with the same F, one per lane: the same fused
+    /// multiply-adds in the same order as [`super::inv_f_impl`], so each lane is bit for bit
+    /// that recursion, at the cost of one.
+    #[inline(always)]
+    unsafe fn two_lane_step<const M: usize>(neg: &[__m128d; M], s: &mut [__m128d; M], x: __m128d) -> __m128d {
+        let mut acc = x;
+        for j in (0..M).rev() {
+            // SAFETY: only called from functions compiled with FMA.
+            acc = unsafe { _mm_fmadd_pd(neg[j], s[j], acc) };
+        }
+        for j in (1..M).rev() {
+            s[j] = s[j - 1];
+        }
+        s[0] = acc;
+        acc
+    }
+
+    /// [`super::simulate_filtered`] for `nF = M`: lane 0 runs `(1/F) u` block by block, the FIR
+    /// turns each finished block into `yhat`, and lane 1 runs `(1/F) yhat` one block behind.
+    #[inline(always)]
+    unsafe fn simulate_filtered_impl<const M: usize>(
+        f: &[f64],
+        b: &[f64],
+        delay: usize,
+        u: &[f64],
+        xu: &mut [f64],
+        yhat: &mut [f64],
+        xy: &mut [f64],
+    ) {
+        // SAFETY: called with AVX2 and FMA; t0 + i < n and p0 + i < n in the unchecked accesses
+        // (i < both <= len0, len1), and xu, yhat, xy have length n.
+        unsafe {
+            const L: usize = 256;
+            let n = u.len();
+            let mut neg = [_mm_setzero_pd(); M];
+            for j in 0..M {
+                neg[j] = _mm_set1_pd(-f[j]);
+            }
+            // Lane 1 is fed zeros during the first block: with zero state it stays exactly zero,
+            // i.e. starts on yhat_0 with the zero initial conditions. Lane 0 is fed zeros past
+            // the end; its outputs there are dropped.
+            let mut s = [_mm_setzero_pd(); M];
+            let mut t0 = 0;
+            while t0 < n + L {
+                let len0 = n.saturating_sub(t0).min(L);
+                let p0 = t0.wrapping_sub(L);
+                let len1 = if t0 >= L { (n - p0).min(L) } else { 0 };
+                let both = len0.min(len1);
+                for i in 0..both {
+                    let x = _mm_set_pd(*yhat.get_unchecked(p0 + i), *u.get_unchecked(t0 + i));
+                    let y = two_lane_step(&neg, &mut s, x);
+                    *xu.get_unchecked_mut(t0 + i) = _mm_cvtsd_f64(y);
+                    *xy.get_unchecked_mut(p0 + i) = _mm_cvtsd_f64(_mm_unpackhi_pd(y, y));
+                }
+                for i in both..len0 {
+                    let y = two_lane_step(&neg, &mut s, _mm_set_pd(0.0, u[t0 + i]));
+                    xu[t0 + i] = _mm_cvtsd_f64(y);
+                }
+                for i in both..len1 {
+                    let y = two_lane_step(&neg, &mut s, _mm_set_pd(yhat[p0 + i], 0.0));
+                    xy[p0 + i] = _mm_cvtsd_f64(_mm_unpackhi_pd(y, y));
+                }
+                if len0 > 0 {
+                    super::fir_range_impl::<true>(b, delay, xu, yhat, t0, t0 + len0);
+                }
+                t0 += L;
+            }
+        }
+    }
+
+    /// # Safety
+    /// The CPU supports AVX2 and FMA; all four signals have the same length.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn simulate_filtered(
+        f: &[f64],
+        b: &[f64],
+        delay: usize,
+        u: &[f64],
+        xu: &mut [f64],
+        yhat: &mut [f64],
+        xy: &mut [f64],
+    ) -> bool {
+        macro_rules! dispatch {
+            ($($m:literal)*) => {
+                match f.len() {
+                    $($m => simulate_filtered_impl::<$m>(f, b, delay, u, xu, yhat, xy),)*
+                    _ => return false,
+                }
+            };
+        }
+        // SAFETY: this function's own contract.
+        unsafe {
+            dispatch!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24);
+        }
+        true
+    }
 }
 
 #[inline]
@@ -397,6 +503,34 @@ pub fn inv_f(f: &[f64], x: &mut [f64]) {
         return unsafe { fma::inv_f(f, x) };
     }
     base::inv_f(f, x)
+}
+
+/// The simulation and both Jacobian signals of an OE model in one pass (METHOD.md 2):
+/// `xu = (1/F) u`, `yhat = q^-d B xu`, `xy = (1/F) yhat`. Equal, bit for bit, to
+/// [`inv_f`] on `u`, [`fir`], and [`inv_f`] on `yhat`: with FMA the two recursions share one
+/// two-lane recursion (the second one block behind the first), which halves the cost of the
+/// `1/F` passes, the innermost loop of every solver iteration.
+pub fn simulate_filtered(
+    f: &[f64],
+    b: &[f64],
+    delay: usize,
+    u: &[f64],
+    xu: &mut [f64],
+    yhat: &mut [f64],
+    xy: &mut [f64],
+) {
+    let n = u.len();
+    assert!(xu.len() == n && yhat.len() == n && xy.len() == n, "signals of one length");
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: as above; the lengths are checked.
+    if has_fma() && unsafe { fma::simulate_filtered(f, b, delay, u, xu, yhat, xy) } {
+        return;
+    }
+    xu.copy_from_slice(u);
+    inv_f(f, xu);
+    fir(b, delay, xu, yhat);
+    xy.copy_from_slice(yhat);
+    inv_f(f, xy);
 }
 
 /// `out_t = sum_i b_i u_{t-d-i+1}`.
@@ -497,6 +631,45 @@ mod tests {
                             "{len} {nb} {delay} {t}"
                         );
                     }
+                }
+            }
+        }
+    }
+
+    /// The fused pass is the three separate passes bit for bit, at every order (the two-lane
+    /// kernels and the fallback), across block boundaries (256) and for short records.
+    #[test]
+    fn simulate_filtered_is_the_separate_passes_bit_for_bit() {
+        for len in [0, 1, 7, 255, 256, 257, 600, 1003] {
+            let u: Vec<f64> = (0..len).map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.3 + (i as f64 * 0.1).sin()).collect();
+            for nf in [0, 1, 2, 5, 12, 24, 25, 30] {
+                // A stable F: poles at radius 0.9 spread over angles.
+                let mut roots = Vec::new();
+                for j in 0..nf / 2 {
+                    let a = 0.3 + 2.5 * j as f64 / nf as f64;
+                    roots.push((0.9 * a.cos(), 0.9 * a.sin()));
+                    roots.push((0.9 * a.cos(), -0.9 * a.sin()));
+                }
+                if nf % 2 == 1 {
+                    roots.push((-0.5, 0.0));
+                }
+                let f = crate::oe::poly_from_roots(&roots);
+                assert_eq!(f.len(), nf);
+                for (nb, delay) in [(1, 0), (3, 1), (12, 1), (7, 4)] {
+                    let b: Vec<f64> = (0..nb).map(|i| 1.0 / (i as f64 + 1.5)).collect();
+                    let mut want_xu = u.clone();
+                    inv_f(&f, &mut want_xu);
+                    let mut want_yhat = vec![0.0; len];
+                    fir(&b, delay, &want_xu, &mut want_yhat);
+                    let mut want_xy = want_yhat.clone();
+                    inv_f(&f, &mut want_xy);
+                    let (mut xu, mut yhat, mut xy) = (vec![f64::NAN; len], vec![f64::NAN; len], vec![f64::NAN; len]);
+                    simulate_filtered(&f, &b, delay, &u, &mut xu, &mut yhat, &mut xy);
+                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    let what = format!("len {len} nf {nf} nb {nb} delay {delay}");
+                    assert_eq!(bits(&xu), bits(&want_xu), "xu, {what}");
+                    assert_eq!(bits(&yhat), bits(&want_yhat), "yhat, {what}");
+                    assert_eq!(bits(&xy), bits(&want_xy), "xy, {what}");
                 }
             }
         }

@@ -27,6 +27,20 @@ pub fn delayed_fir(b: &[f64], delay: usize, u: &[f64], out: &mut [f64]) {
     kernels::fir(b, delay, u, out)
 }
 
+/// The simulation and the two Jacobian signals in one pass: `xu = (1/F) u`,
+/// `yhat = q^-d B xu`, `xy = (1/F) yhat` ([`kernels::simulate_filtered`]).
+pub fn simulate_filtered(
+    b: &[f64],
+    f: &[f64],
+    delay: usize,
+    u: &[f64],
+    xu: &mut [f64],
+    yhat: &mut [f64],
+    xy: &mut [f64],
+) {
+    kernels::simulate_filtered(f, b, delay, u, xu, yhat, xy)
+}
+
 /// Simulated output (= one-step predictor of an OE model), zero initial conditions.
 pub fn simulate(b: &[f64], f: &[f64], delay: usize, u: &[f64], yhat: &mut [f64]) {
     delayed_fir(b, delay, u, yhat);

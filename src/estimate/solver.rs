@@ -188,6 +188,7 @@ pub struct Workspace {
     xu: Vec<f64>,
     trial_xu: Vec<f64>,
     xy: Vec<f64>,
+    trial_xy: Vec<f64>,
     r: Vec<f64>,
     w: Vec<f64>,
     h: Vec<f64>,
@@ -214,6 +215,7 @@ impl Workspace {
             &mut self.xu,
             &mut self.trial_xu,
             &mut self.xy,
+            &mut self.trial_xy,
             &mut self.r,
             &mut self.w,
         ] {
@@ -307,10 +309,10 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
     let exact_level = 1e-26 * y_scale.max(f64::MIN_POSITIVE);
 
     // yhat = q^-d B (1/F) u = B applied to xu = (1/F) u (LTI operators commute, zero initial
-    // conditions): one 1/F pass per evaluation serves both the simulation and the Jacobian.
-    ws.xu.copy_from_slice(prob.u);
-    oe::inv_f_in_place(&ws.theta[nb..], &mut ws.xu);
-    oe::delayed_fir(&ws.theta[..nb], prob.delay, &ws.xu, &mut ws.yhat);
+    // conditions): one pass gives the simulation and both Jacobian signals (xu and
+    // xy = (1/F) yhat), so an accepted trial point needs no further filtering.
+    let (b0, f0) = ws.theta.split_at(nb);
+    oe::simulate_filtered(b0, f0, prob.delay, prob.u, &mut ws.xu, &mut ws.yhat, &mut ws.xy);
     let mut crit = loss.criterion(prob.y, &ws.yhat);
     let finish = |ws: &mut Workspace, crit, iterations, termination, reflections, lambda| Solution {
         theta: ws.theta.clone(),
@@ -352,8 +354,6 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
                 }
             }
         }
-        ws.xy.copy_from_slice(&ws.yhat);
-        oe::inv_f_in_place(&ws.theta[nb..], &mut ws.xy);
         let w = if use_weights { Some(&ws.w[..]) } else { None };
         ws.ne.build(&lay, &ws.xu, &ws.xy, w, &ws.r, &mut ws.h, &mut ws.g);
         if ws.h.iter().any(|v| !v.is_finite()) || ws.g.iter().any(|v| !v.is_finite()) {
@@ -409,9 +409,8 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
                 oe::reflect_unstable(&mut ws.trial[nb..]);
                 reflected = true;
             }
-            ws.trial_xu.copy_from_slice(prob.u);
-            oe::inv_f_in_place(&ws.trial[nb..], &mut ws.trial_xu);
-            oe::delayed_fir(&ws.trial[..nb], prob.delay, &ws.trial_xu, &mut ws.trial_yhat);
+            let (tb, tf) = ws.trial.split_at(nb);
+            oe::simulate_filtered(tb, tf, prob.delay, prob.u, &mut ws.trial_xu, &mut ws.trial_yhat, &mut ws.trial_xy);
             let new_crit = loss.criterion(prob.y, &ws.trial_yhat);
             if new_crit.is_finite() && new_crit < crit {
                 let rho = if pred > 0.0 { (crit - new_crit) / pred } else { 0.0 };
@@ -424,6 +423,7 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
                 std::mem::swap(&mut ws.theta, &mut ws.trial);
                 std::mem::swap(&mut ws.yhat, &mut ws.trial_yhat);
                 std::mem::swap(&mut ws.xu, &mut ws.trial_xu);
+                std::mem::swap(&mut ws.xy, &mut ws.trial_xy);
                 crit = new_crit;
                 if reflected {
                     reflections += 1;
