@@ -116,8 +116,14 @@ pub fn is_stable(f: &[f64]) -> bool {
     true
 }
 
-/// Roots of `z^n + f_1 z^{n-1} + ... + f_n` (the poles of the model) as (re, im) pairs,
-/// from the eigenvalues of the companion matrix. Empty when the eigen solver fails.
+/// Roots of `z^n + f_1 z^{n-1} + ... + f_n` (the poles of the model) as (re, im) pairs. Empty
+/// when they cannot be computed (non-finite coefficients, or both root finders failed).
+///
+/// Aberth-Ehrlich iteration first: the solver reflects unstable trial steps (every reflection
+/// needs the poles, and lightly damped piezo modes put a third of the trial steps outside
+/// the circle), and for these small degrees it is ~10x faster than a general eigen solver
+/// call. When it does not converge (e.g. multiple roots), the eigenvalues of the companion
+/// matrix.
 pub fn poles(f: &[f64]) -> Vec<(f64, f64)> {
     let n = f.len();
     if n == 0 {
@@ -126,6 +132,12 @@ pub fn poles(f: &[f64]) -> Vec<(f64, f64)> {
     if f.iter().any(|v| !v.is_finite()) {
         return Vec::new();
     }
+    aberth_roots(f).unwrap_or_else(|| companion_eigenvalues(f))
+}
+
+/// Eigenvalues of the companion matrix of `z^n + f_1 z^{n-1} + ... + f_n`; empty on failure.
+fn companion_eigenvalues(f: &[f64]) -> Vec<(f64, f64)> {
+    let n = f.len();
     let c = Mat::<f64>::from_fn(n, n, |i, j| {
         if i == 0 {
             -f[j]
@@ -139,6 +151,105 @@ pub fn poles(f: &[f64]) -> Vec<(f64, f64)> {
         Ok(ev) => ev.iter().map(|z| (z.re, z.im)).collect(),
         Err(_) => Vec::new(),
     }
+}
+
+/// Complex arithmetic on (re, im) pairs, just what the root finder needs.
+mod cplx {
+    pub type C = (f64, f64);
+    #[inline]
+    pub fn add(a: C, b: C) -> C {
+        (a.0 + b.0, a.1 + b.1)
+    }
+    #[inline]
+    pub fn sub(a: C, b: C) -> C {
+        (a.0 - b.0, a.1 - b.1)
+    }
+    #[inline]
+    pub fn mul(a: C, b: C) -> C {
+        (a.0 * b.0 - a.1 * b.1, a.0 * b.1 + a.1 * b.0)
+    }
+    #[inline]
+    pub fn div(a: C, b: C) -> C {
+        // Smith's algorithm: no overflow for large |b|.
+        if b.0.abs() >= b.1.abs() {
+            let r = b.1 / b.0;
+            let d = b.0 + b.1 * r;
+            ((a.0 + a.1 * r) / d, (a.1 - a.0 * r) / d)
+        } else {
+            let r = b.0 / b.1;
+            let d = b.0 * r + b.1;
+            ((a.0 * r + a.1) / d, (a.1 * r - a.0) / d)
+        }
+    }
+    #[inline]
+    pub fn abs(a: C) -> f64 {
+        a.0.hypot(a.1)
+    }
+}
+
+/// Roots of the monic `z^n + f_1 z^{n-1} + ... + f_n` by the Aberth-Ehrlich iteration
+/// (simultaneous Newton steps, each deflated by the other roots; Gauss-Seidel updates), from
+/// points on a circle of the roots' geometric mean radius. None unless every correction fell
+/// to rounding level within the iteration cap. No allocation besides the result.
+fn aberth_roots(f: &[f64]) -> Option<Vec<(f64, f64)>> {
+    use cplx::*;
+    const MAX_ITERATIONS: usize = 100;
+    let n = f.len();
+    let radius = f[n - 1].abs().powf(1.0 / n as f64).clamp(0.1, 10.0);
+    let mut z: Vec<C> = (0..n)
+        .map(|k| {
+            // An angle offset keeps the start off the real axis and off conjugate symmetry.
+            let a = std::f64::consts::TAU * k as f64 / n as f64 + 0.4;
+            (radius * a.cos(), radius * a.sin())
+        })
+        .collect();
+    let mut done = vec![false; n];
+    for _ in 0..MAX_ITERATIONS {
+        let mut all_done = true;
+        for k in 0..n {
+            if done[k] {
+                continue;
+            }
+            let zk = z[k];
+            // p(zk) and p'(zk) by Horner, and the bound sum |c_i| |zk|^(n-i) of the rounding
+            // error of p(zk).
+            let (mut p, mut dp): (C, C) = ((1.0, 0.0), (0.0, 0.0));
+            let (r, mut bound) = (abs(zk), 1.0);
+            for &c in f {
+                dp = add(mul(dp, zk), p);
+                p = add(mul(p, zk), (c, 0.0));
+                bound = bound * r + c.abs();
+            }
+            if abs(p) == 0.0 {
+                done[k] = true;
+                continue;
+            }
+            // |p| at rounding level: zk is a root as far as the coefficients define one; the
+            // correction below is its last.
+            let at_rounding = abs(p) <= 4.0 * (n + 1) as f64 * f64::EPSILON * bound;
+            let ratio = div(p, dp);
+            let mut sum: C = (0.0, 0.0);
+            for (j, &zj) in z.iter().enumerate() {
+                if j != k {
+                    sum = add(sum, div((1.0, 0.0), sub(zk, zj)));
+                }
+            }
+            let w = div(ratio, sub((1.0, 0.0), mul(ratio, sum)));
+            if !(w.0.is_finite() && w.1.is_finite()) {
+                return None;
+            }
+            z[k] = sub(zk, w);
+            if at_rounding || abs(w) <= 4.0 * f64::EPSILON * abs(z[k]).max(f64::MIN_POSITIVE) {
+                done[k] = true;
+            } else {
+                all_done = false;
+            }
+        }
+        if all_done {
+            return Some(z);
+        }
+    }
+    None
 }
 
 /// Largest pole radius of `F` (0 for nF = 0, infinity when the poles cannot be computed).
@@ -295,6 +406,60 @@ mod tests {
             reflect_unstable(&mut f);
             assert!(is_stable(&f), "{f:?}");
         }
+    }
+
+    /// The Aberth roots are the companion-matrix eigenvalues: random real polynomials of
+    /// degrees 1..24 with roots inside, on and outside the circle, lightly damped clusters
+    /// like the piezo's modes, and a double root (where Aberth may give up: then `poles`
+    /// falls back to the eigenvalues).
+    #[test]
+    fn aberth_roots_are_the_companion_eigenvalues() {
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut cases: Vec<Vec<(f64, f64)>> = Vec::new();
+        for n in 1..=24 {
+            for _ in 0..20 {
+                let mut roots = Vec::new();
+                while roots.len() + 2 <= n {
+                    let (r, a) = (0.2 + 1.0 * rnd(), std::f64::consts::PI * rnd());
+                    roots.push((r * a.cos(), r * a.sin()));
+                    roots.push((r * a.cos(), -r * a.sin()));
+                }
+                if roots.len() < n {
+                    roots.push((2.0 * rnd() - 1.0, 0.0));
+                }
+                cases.push(roots);
+            }
+        }
+        // Resonances at radius 0.995-0.9995, some within 0.01 rad of each other.
+        let mut lightly_damped = Vec::new();
+        for (r, a) in [(0.999, 0.30), (0.9995, 0.31), (0.995, 0.8), (0.998, 1.5), (0.997, 2.2)] {
+            lightly_damped.push((r * f64::cos(a), r * f64::sin(a)));
+            lightly_damped.push((r * f64::cos(a), -r * f64::sin(a)));
+        }
+        cases.push(lightly_damped);
+        for roots in &cases {
+            let f = poly_from_roots(roots);
+            let got = poles(&f);
+            let want = companion_eigenvalues(&f);
+            assert_eq!(got.len(), f.len());
+            // Each true root is found about as accurately as by the eigen solver: both are
+            // limited by how well the rounded coefficients determine it.
+            let nearest = |set: &[(f64, f64)], w: (f64, f64)| {
+                set.iter().map(|g| (g.0 - w.0).hypot(g.1 - w.1)).fold(f64::INFINITY, f64::min)
+            };
+            for &w in roots {
+                let (a, e) = (nearest(&got, w), nearest(&want, w));
+                assert!(a <= 10.0 * e + 1e-12, "{f:?}: root {w:?}: Aberth {a:e} away, eigen solver {e:e}");
+            }
+        }
+        let double = poly_from_roots(&[(0.5, 0.0), (0.5, 0.0), (-0.3, 0.2), (-0.3, -0.2)]);
+        let p = poles(&double);
+        assert_eq!(p.len(), 4);
+        assert!(p.iter().filter(|z| (z.0 - 0.5).hypot(z.1) < 1e-6).count() == 2, "{p:?}");
     }
 
     #[test]

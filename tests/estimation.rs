@@ -231,7 +231,7 @@ fn chains_recover_the_truth_merge_duplicates_and_keep_the_best() {
 }
 
 /// A warm-started cell (`warm_lambda0`) ends at a minimum (polishing it with tight tolerances
-/// changes W by less than 1e-7) in fewer iterations than with the cold damping `lambda0`;
+/// lowers W by less than 1e-6, against the 1e-4 at which local minima differ) in fewer iterations than with the cold damping `lambda0`;
 /// `lambda0 = 0` (a pure Gauss-Newton first step) is allowed, and a rejected step from it still
 /// raises the damping (it used to stay 0 and loop forever).
 #[test]
@@ -259,7 +259,7 @@ fn warm_damping_converges_to_a_minimum_in_fewer_iterations() {
         assert!(w.termination.converged(), "{:?}", w.termination);
         let polished = estimate::fit_huber(&prob, ls.sigma, k, &[&w.b[..], &w.f[..]].concat(), &judge, &tight, &mut ws);
         assert!(
-            polished.criterion >= w.criterion * (1.0 - 1e-7),
+            polished.criterion >= w.criterion * (1.0 - 1e-6),
             "k={k}: {} polishes to {}",
             w.criterion,
             polished.criterion
