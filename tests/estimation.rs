@@ -277,3 +277,43 @@ fn warm_damping_converges_to_a_minimum_in_fewer_iterations() {
     let sol = solver::minimise(&prob, Loss::LeastSquares, &estimate::init::initial_guesses(&prob)[0], &gn, &mut ws);
     assert!(sol.termination.converged(), "{:?}", sol.termination);
 }
+
+/// A losing chain that runs out of iterations stays in the race on a budget of
+/// `Chains::CREEP_ITERATIONS` per cell, and leaves that budget once a fit of it converges.
+#[test]
+fn a_losing_chain_out_of_iterations_runs_on_the_creeping_budget() {
+    let (b, f) = oe1010();
+    let u = binary_input(3000, 3, 10.0, 7);
+    let mut rng = Lcg(9);
+    let y: Vec<f64> = oe::simulate_vec(&b, &f, 1, &u).iter().map(|v| v + 0.1 * rng.normal()).collect();
+    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1 };
+    let (judge, mut ws) = (Judge::default(), Workspace::new());
+    let opts = SolverOptions::default();
+    let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
+    // A far start: B shrunk, poles pulled towards the origin.
+    let mut far = ls.theta();
+    for v in &mut far[..b.len()] {
+        *v *= 0.2;
+    }
+    for (j, v) in far[b.len()..].iter_mut().enumerate() {
+        *v *= 0.6f64.powi(j as i32 + 1);
+    }
+    let short = SolverOptions { max_iterations: 2 * estimate::Chains::CREEP_ITERATIONS, ..opts.clone() };
+    let mut chains = estimate::Chains::new(&ls.theta(), &[far]);
+    ws.record_trace = true;
+    // At k = 3 W is nearly the least-squares criterion: theta_LS converges at once.
+    let (h, which) = chains.step(&prob, ls.sigma, 3.0, &judge, &short, &mut ws);
+    assert!(h.termination.converged() && which == 0, "{:?} {which}", h.termination);
+    assert_eq!((chains.live(), chains.creeping()), (2, 1), "the far chain lost without converging");
+    let (_, which) = chains.step(&prob, ls.sigma, 3.1, &judge, &short, &mut ws);
+    assert_eq!(which, 0);
+    // The far chain ran last: its accepted steps are in the trace.
+    assert!(ws.trace.len() - 1 <= estimate::Chains::CREEP_ITERATIONS, "{} steps", ws.trace.len() - 1);
+    // Ten iterations per cell at a time, it converges (or merges) and leaves the budget.
+    let mut steps = 0;
+    while chains.creeping() > 0 {
+        steps += 1;
+        assert!(steps <= 40, "still creeping after 40 cells");
+        chains.step(&prob, ls.sigma, 3.1 + 0.01 * steps as f64, &judge, &opts, &mut ws);
+    }
+}

@@ -19,7 +19,10 @@ use std::time::{Duration, Instant};
 static SERIAL: Mutex<()> = Mutex::new(());
 
 const PAIRS: usize = 6 * 9;
-const CELLS: usize = PAIRS * 12;
+/// k values per pair: enough that a pair's continuation chain spans several checkpoint
+/// intervals, so kills leave pairs with some of their k values done.
+const KS: usize = 30;
+const CELLS: usize = PAIRS * KS;
 
 fn serial() -> std::sync::MutexGuard<'static, ()> {
     SERIAL.lock().unwrap_or_else(|e| e.into_inner())
@@ -137,7 +140,7 @@ fn partial_pairs(parts: &Path) -> usize {
             *per_pair.entry((r.nb, r.nf)).or_insert(0) += 1;
         }
     }
-    per_pair.values().filter(|&&n| n < 12).count()
+    per_pair.values().filter(|&&n| n < KS).count()
 }
 
 /// Run a job to completion, returning the wall time.
@@ -152,12 +155,12 @@ fn kill_and_resume(start: &str) {
     let _guard = serial();
     let dir = tempfile::tempdir().unwrap();
     make_data(dir.path());
-    let reference_job = write_job(dir.path(), "ref.json", "est.csv", start, 12, "ref");
+    let reference_job = write_job(dir.path(), "ref.json", "est.csv", start, KS, "ref");
     let secs = reference(&reference_job);
     let expected = table(&dir.path().join("ref/cells.parquet"));
     assert_eq!(expected.len(), PAIRS + CELLS);
 
-    let job = write_job(dir.path(), "job.json", "est.csv", start, 12, "out");
+    let job = write_job(dir.path(), "job.json", "est.csv", start, KS, "out");
     let out = dir.path().join("out");
     let parts = out.join("parts");
     let mut rng = common::Lcg(0x5eed ^ start.len() as u64);
@@ -272,7 +275,7 @@ fn sigint_stops_cleanly_and_another_job_is_refused_unless_forced() {
     let _guard = serial();
     let dir = tempfile::tempdir().unwrap();
     make_data(dir.path());
-    let job = write_job(dir.path(), "job.json", "est.csv", "ls", 12, "out");
+    let job = write_job(dir.path(), "job.json", "est.csv", "ls", KS, "out");
     let out = dir.path().join("out");
     let parts = out.join("parts");
 
@@ -303,7 +306,7 @@ fn sigint_stops_cleanly_and_another_job_is_refused_unless_forced() {
     let last = csv.trim_end().rsplit_once(',').unwrap().0.len();
     csv.replace_range(last.., ",0.5\n");
     std::fs::write(dir.path().join("changed.csv"), &csv).unwrap();
-    let changed = write_job(dir.path(), "changed.json", "changed.csv", "ls", 12, "out");
+    let changed = write_job(dir.path(), "changed.json", "changed.csv", "ls", KS, "out");
     let o = oesweep(&["run", changed.to_str().unwrap(), "--quiet"]);
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     let err = String::from_utf8_lossy(&o.stderr);
@@ -312,7 +315,7 @@ fn sigint_stops_cleanly_and_another_job_is_refused_unless_forced() {
 
     // The same bytes under another path are the same data: resumes and completes.
     std::fs::copy(dir.path().join("est.csv"), dir.path().join("moved.csv")).unwrap();
-    let moved = write_job(dir.path(), "moved.json", "moved.csv", "ls", 12, "out");
+    let moved = write_job(dir.path(), "moved.json", "moved.csv", "ls", KS, "out");
     let o = oesweep(&["run", moved.to_str().unwrap(), "--threads", "2", "--quiet"]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains("resumed from the checkpoint"), "{}", text(&o));

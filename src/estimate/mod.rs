@@ -225,28 +225,40 @@ pub fn fit_huber_starts(
 /// often end in different basins; moving up in k then tracks each basin (measured against the
 /// scipy peer: no worse in 96 % of cells, against 91 % going down from theta_LS). Chains
 /// that reach the same criterion (relative [`Chains::MERGE`]) have found the same minimum and
-/// merge into the earlier one, so most pairs soon run a single chain.
+/// merge into the earlier one, so most pairs soon run a single chain. A losing chain that ran
+/// out of iterations (creeping along the stability boundary) continues on a small iteration
+/// budget until it converges again ([`Chains::CREEP_ITERATIONS`]).
 #[derive(Clone, Debug)]
 pub struct Chains {
     /// Current point of each chain (None: merged into an earlier chain).
     points: Vec<Option<Vec<f64>>>,
     /// The points are minima at the previous k (after the first step), not cold starts.
     warm: bool,
+    /// Per chain: its last fit lost and ran out of iterations (see [`Chains::step`]).
+    creeping: Vec<bool>,
 }
 
 impl Chains {
     /// Relative criterion difference below which two chains count as one minimum.
     pub const MERGE: f64 = 1e-6;
+    /// Iteration budget of a chain creeping along the stability boundary.
+    pub const CREEP_ITERATIONS: usize = 10;
 
     /// Chains from `theta_ls` (chain 0) and each of `alternatives`.
     pub fn new(theta_ls: &[f64], alternatives: &[Vec<f64>]) -> Self {
-        let points = std::iter::once(theta_ls.to_vec()).chain(alternatives.iter().cloned()).map(Some).collect();
-        Chains { points, warm: false }
+        let points: Vec<_> = std::iter::once(theta_ls.to_vec()).chain(alternatives.iter().cloned()).map(Some).collect();
+        let creeping = vec![false; points.len()];
+        Chains { points, warm: false, creeping }
     }
 
     /// Chains still running.
     pub fn live(&self) -> usize {
         self.points.iter().flatten().count()
+    }
+
+    /// Chains running on the creeping budget [`Chains::CREEP_ITERATIONS`].
+    pub fn creeping(&self) -> usize {
+        self.points.iter().zip(&self.creeping).filter(|(p, c)| p.is_some() && **c).count()
     }
 
     /// The cell at tuning constant `k` (larger than at the previous call): one fit per live
@@ -266,7 +278,9 @@ impl Chains {
         let opts = &if self.warm { opts.huber_warm() } else { opts.huber() };
         self.warm = true;
         let mut sols: Vec<Option<Solution>> = Vec::with_capacity(self.points.len());
-        for point in &self.points {
+        let budget = SolverOptions { max_iterations: Self::CREEP_ITERATIONS.min(opts.max_iterations), ..opts.clone() };
+        for (point, &creeping) in self.points.iter().zip(&self.creeping) {
+            let opts = if creeping { &budget } else { opts };
             sols.push(point.as_ref().map(|p| solver::minimise(prob, loss, p, opts, ws)));
         }
         let last = sols.iter().rposition(Option::is_some);
@@ -294,6 +308,18 @@ impl Chains {
         }
         // No usable chain: report chain 0's (non-finite) attempt as the cell's failure.
         let which = best.unwrap_or(0);
+        // A losing chain whose fit ran out of iterations is creeping along the stability
+        // boundary: nearly every step leaves the unit circle and is reflected back for a
+        // decrease of ~1e-5, the minimum of its basin lying outside. Walked on, it repeats
+        // that at every k (on the paper grid such steps never won a cell, yet took a quarter
+        // of the Huber iterations), so it runs on a budget of CREEP_ITERATIONS per cell until
+        // a fit of it converges again: enough for a warm start whose basin has turned
+        // interior (2-5 iterations), and the chain stays in the race.
+        for (i, sol) in sols.iter().enumerate() {
+            self.creeping[i] = best.is_some()
+                && i != which
+                && sol.as_ref().is_some_and(|s| s.termination == Termination::MaxIterations);
+        }
         let sol = sols[which].as_ref().or(sols.iter().flatten().next()).expect("at least one chain");
         let fit = huber_from_solution(prob, sigma, k, sol, judge, ws, Some(which) != last);
         (fit, which)
