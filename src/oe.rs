@@ -57,21 +57,16 @@ pub fn simulate_vec(b: &[f64], f: &[f64], delay: usize, u: &[f64]) -> Vec<f64> {
 /// Frequency response `G(e^{jw}) = e^{-jwd} B(e^{-jw}) / F(e^{-jw})` at normalised angular
 /// frequency `w = 2 pi f Ts` (rad/sample). Returns (re, im).
 pub fn freq_response(b: &[f64], f: &[f64], delay: usize, w: f64) -> (f64, f64) {
-    // B(e^{-jw}) e^{-jwd} = sum_i b_i e^{-jw(d+i)}
-    let (mut br, mut bi) = (0.0, 0.0);
-    for (i, &c) in b.iter().enumerate() {
-        let ph = -w * (delay + i) as f64;
-        br += c * ph.cos();
-        bi += c * ph.sin();
-    }
-    let (mut fr, mut fi) = (1.0, 0.0);
-    for (j, &c) in f.iter().enumerate() {
-        let ph = -w * (j + 1) as f64;
-        fr += c * ph.cos();
-        fi += c * ph.sin();
-    }
-    let den = fr * fr + fi * fi;
-    ((br * fr + bi * fi) / den, (bi * fr - br * fi) / den)
+    use cplx::*;
+    // Horner in q = e^{-jw} (|q| = 1, so no growth): one sine and cosine per frequency
+    // instead of one per coefficient (the band fit of every cell evaluates hundreds of bins).
+    let q = (w.cos(), -w.sin());
+    let horner = |c: &[f64], last: C| c.iter().rev().fold(last, |acc, &ci| add(mul(acc, q), (ci, 0.0)));
+    // B(q) = sum_i b_i q^i; F(q) = 1 + sum_j f_j q^j = 1 + q (f_1 + f_2 q + ...).
+    let bq = horner(b, (0.0, 0.0));
+    let fq = add((1.0, 0.0), mul(q, horner(f, (0.0, 0.0))));
+    let shift = ((w * delay as f64).cos(), -(w * delay as f64).sin());
+    div(mul(shift, bq), fq)
 }
 
 /// Schur-Cohn (step-down) test: true when every root of `1 + f_1 z^-1 + ... + f_n z^-n` lies
@@ -181,9 +176,10 @@ mod cplx {
             ((a.0 * r + a.1) / d, (a.1 * r - a.0) / d)
         }
     }
+    /// |a| without libm's hypot (slow): the roots here are of modest size, no overflow.
     #[inline]
     pub fn abs(a: C) -> f64 {
-        a.0.hypot(a.1)
+        (a.0 * a.0 + a.1 * a.1).sqrt()
     }
 }
 
@@ -475,5 +471,34 @@ mod tests {
     fn freq_response_at_dc() {
         let (re, im) = freq_response(&[0.2, 0.1], &[-0.5], 1, 0.0);
         assert!((re - 0.6).abs() < 1e-12 && im.abs() < 1e-12);
+    }
+
+    /// Horner in e^{-jw} against the defining sums, term by term.
+    #[test]
+    fn freq_response_is_the_defining_sum() {
+        let b = [0.5, -0.2, 0.1, 0.05];
+        let f = [-1.2, 0.5, 0.1];
+        for delay in [0, 1, 3] {
+            for w in [0.0, 0.01, 0.7, 2.0, std::f64::consts::PI] {
+                let (mut br, mut bi, mut fr, mut fi) = (0.0, 0.0, 1.0, 0.0);
+                for (i, c) in b.iter().enumerate() {
+                    let ph = -w * (delay + i) as f64;
+                    br += c * ph.cos();
+                    bi += c * ph.sin();
+                }
+                for (j, c) in f.iter().enumerate() {
+                    let ph = -w * (j + 1) as f64;
+                    fr += c * ph.cos();
+                    fi += c * ph.sin();
+                }
+                let den = fr * fr + fi * fi;
+                let want = ((br * fr + bi * fi) / den, (bi * fr - br * fi) / den);
+                let got = freq_response(&b, &f, delay, w);
+                assert!(
+                    (got.0 - want.0).abs() < 1e-12 && (got.1 - want.1).abs() < 1e-12,
+                    "{delay} {w}: {got:?} {want:?}"
+                );
+            }
+        }
     }
 }
