@@ -56,6 +56,34 @@ impl Layout {
     }
 }
 
+/// `rows` <- the t with `w[t] != skip`, and `alpha` (if given) <- those `w[t]`. Branch-free
+/// (write every t, advance past the kept ones): which rows are kept is unpredictable, and
+/// the branchy filter was most of the time of building the normal equations outside the
+/// correlations.
+fn compact_rows(rows: &mut Vec<u32>, alpha: Option<&mut Vec<f64>>, w: &[f64], skip: f64) {
+    let n = w.len();
+    rows.resize(n, 0);
+    let mut m = 0;
+    match alpha {
+        None => {
+            for (t, &wt) in w.iter().enumerate() {
+                rows[m] = t as u32;
+                m += (wt != skip) as usize;
+            }
+        }
+        Some(alpha) => {
+            alpha.resize(n, 0.0);
+            for (t, &wt) in w.iter().enumerate() {
+                rows[m] = t as u32;
+                alpha[m] = wt;
+                m += (wt != skip) as usize;
+            }
+            alpha.truncate(m);
+        }
+    }
+    rows.truncate(m);
+}
+
 /// Below this many weighted rows the rank-1 updates beat packing them for a matrix product.
 const PACK_MIN_ROWS: usize = 64;
 
@@ -101,7 +129,7 @@ impl NormalEquations {
 
         self.rows.clear();
         if let Some(w) = w {
-            self.rows.extend((0..n as u32).filter(|&t| w[t as usize] != 1.0));
+            compact_rows(&mut self.rows, None, w, 1.0);
         }
         // Most rows reweighted: the sum is taken over them directly and needs no Gram matrix.
         let direct = w.is_some() && 2 * self.rows.len() > n;
@@ -140,14 +168,7 @@ impl NormalEquations {
         match w {
             Some(w) if direct => {
                 h.fill(0.0);
-                self.alpha.clear();
-                self.rows.clear();
-                for (t, &wt) in w.iter().enumerate() {
-                    if wt != 0.0 {
-                        self.rows.push(t as u32);
-                        self.alpha.push(wt);
-                    }
-                }
+                compact_rows(&mut self.rows, Some(&mut self.alpha), w, 0.0);
                 self.add_rows(lay, xu, xy, h);
             }
             _ => {
