@@ -230,8 +230,21 @@ impl NormalEquations {
         let p = faer::MatRef::from_column_major_slice(&self.packed[..m * d], m, d);
         let q = if uniform { p } else { faer::MatRef::from_column_major_slice(&self.scaled[..m * d], m, d) };
         let prod = faer::MatMut::from_column_major_slice_mut(&mut self.product[..d * d], d, d);
-        faer::linalg::matmul::matmul(prod, faer::Accum::Replace, q.transpose(), p, scale, faer::Par::Seq);
-        // The product is symmetric: its column-major layout reads as row-major too.
+        // Only the upper triangle is needed (and read below): half the multiply-adds.
+        use faer::linalg::matmul::triangular::{BlockStructure, matmul};
+        let rect = BlockStructure::Rectangular;
+        matmul(
+            prod,
+            BlockStructure::TriangularUpper,
+            faer::Accum::Replace,
+            q.transpose(),
+            rect,
+            p,
+            rect,
+            scale,
+            faer::Par::Seq,
+        );
+        // Upper triangle (row i <= column j) of the column-major product, element (i, j).
         for i in 0..d {
             for j in i..d {
                 h[i * d + j] += self.product[j * d + i];
