@@ -292,41 +292,9 @@ mod fma {
             {
                 let mut acc = [_mm256_setzero_pd(); 6];
                 let mut i = s0;
-                // SAFETY: i + 7 < end <= n - l (i + 3 below), so every load is inside its slice.
+                // SAFETY: i + 3 < end <= n - l, so every load below is inside its slice.
                 unsafe {
                     let (pu, py, pr) = (u.as_ptr(), y.as_ptr(), r.as_ptr());
-                    // Two sets of accumulators: one set is a chain of dependent adds that
-                    // waits an FMA latency per step (6 FMAs per 4 cycles); two keep both
-                    // FMA ports busy.
-                    let mut acc2 = [_mm256_setzero_pd(); 6];
-                    while i + 8 <= end {
-                        let a = _mm256_loadu_pd(pu.add(i));
-                        let b = _mm256_loadu_pd(py.add(i));
-                        let p = _mm256_loadu_pd(pu.add(i + l));
-                        let q = _mm256_loadu_pd(py.add(i + l));
-                        let z = _mm256_loadu_pd(pr.add(i + l));
-                        acc[0] = _mm256_fmadd_pd(a, p, acc[0]);
-                        acc[1] = _mm256_fmadd_pd(b, q, acc[1]);
-                        acc[2] = _mm256_fmadd_pd(a, q, acc[2]);
-                        acc[3] = _mm256_fmadd_pd(b, p, acc[3]);
-                        acc[4] = _mm256_fmadd_pd(a, z, acc[4]);
-                        acc[5] = _mm256_fmadd_pd(b, z, acc[5]);
-                        let a = _mm256_loadu_pd(pu.add(i + 4));
-                        let b = _mm256_loadu_pd(py.add(i + 4));
-                        let p = _mm256_loadu_pd(pu.add(i + 4 + l));
-                        let q = _mm256_loadu_pd(py.add(i + 4 + l));
-                        let z = _mm256_loadu_pd(pr.add(i + 4 + l));
-                        acc2[0] = _mm256_fmadd_pd(a, p, acc2[0]);
-                        acc2[1] = _mm256_fmadd_pd(b, q, acc2[1]);
-                        acc2[2] = _mm256_fmadd_pd(a, q, acc2[2]);
-                        acc2[3] = _mm256_fmadd_pd(b, p, acc2[3]);
-                        acc2[4] = _mm256_fmadd_pd(a, z, acc2[4]);
-                        acc2[5] = _mm256_fmadd_pd(b, z, acc2[5]);
-                        i += 8;
-                    }
-                    for j in 0..6 {
-                        acc[j] = _mm256_add_pd(acc[j], acc2[j]);
-                    }
                     while i + 4 <= end {
                         let a = _mm256_loadu_pd(pu.add(i));
                         let b = _mm256_loadu_pd(py.add(i));
