@@ -186,20 +186,27 @@ mod cplx {
 /// Roots of the monic `z^n + f_1 z^{n-1} + ... + f_n` by the Aberth-Ehrlich iteration
 /// (simultaneous Newton steps, each deflated by the other roots; Gauss-Seidel updates), from
 /// points on a circle of the roots' geometric mean radius. None unless every correction fell
-/// to rounding level within the iteration cap. No allocation besides the result.
+/// to rounding level within the iteration cap.
 fn aberth_roots(f: &[f64]) -> Option<Vec<(f64, f64)>> {
+    let mut z = vec![(0.0, 0.0); f.len()];
+    let mut done = vec![false; f.len()];
+    aberth_into(f, &mut z, &mut done).then_some(z)
+}
+
+/// [`aberth_roots`] into `z` (one entry per root) with `done` as scratch (as long as `z`);
+/// false when it did not converge. Allocates nothing.
+fn aberth_into(f: &[f64], z: &mut [(f64, f64)], done: &mut [bool]) -> bool {
     use cplx::*;
     const MAX_ITERATIONS: usize = 100;
     let n = f.len();
+    assert!(z.len() == n && done.len() == n);
     let radius = f[n - 1].abs().powf(1.0 / n as f64).clamp(0.1, 10.0);
-    let mut z: Vec<C> = (0..n)
-        .map(|k| {
-            // An angle offset keeps the start off the real axis and off conjugate symmetry.
-            let a = std::f64::consts::TAU * k as f64 / n as f64 + 0.4;
-            (radius * a.cos(), radius * a.sin())
-        })
-        .collect();
-    let mut done = vec![false; n];
+    for (k, zk) in z.iter_mut().enumerate() {
+        // An angle offset keeps the start off the real axis and off conjugate symmetry.
+        let a = std::f64::consts::TAU * k as f64 / n as f64 + 0.4;
+        *zk = (radius * a.cos(), radius * a.sin());
+    }
+    done.fill(false);
     for _ in 0..MAX_ITERATIONS {
         let mut all_done = true;
         for k in 0..n {
@@ -232,7 +239,7 @@ fn aberth_roots(f: &[f64]) -> Option<Vec<(f64, f64)>> {
             }
             let w = div(ratio, sub((1.0, 0.0), mul(ratio, sum)));
             if !(w.0.is_finite() && w.1.is_finite()) {
-                return None;
+                return false;
             }
             z[k] = sub(zk, w);
             if at_rounding || abs(w) <= 4.0 * f64::EPSILON * abs(z[k]).max(f64::MIN_POSITIVE) {
@@ -242,10 +249,10 @@ fn aberth_roots(f: &[f64]) -> Option<Vec<(f64, f64)>> {
             }
         }
         if all_done {
-            return Some(z);
+            return true;
         }
     }
-    None
+    false
 }
 
 /// Largest pole radius of `F` (0 for nF = 0, infinity when the poles cannot be computed).
@@ -262,20 +269,25 @@ pub fn max_pole_radius(f: &[f64]) -> f64 {
 
 /// Monic real polynomial `[f_1..f_n]` from its roots (complex roots in conjugate pairs).
 pub fn poly_from_roots(roots: &[(f64, f64)]) -> Vec<f64> {
-    // c holds the complex coefficients of prod (z - r), highest power first.
-    let mut c: Vec<(f64, f64)> = vec![(1.0, 0.0)];
-    for &(rr, ri) in roots {
-        let mut next = vec![(0.0, 0.0); c.len() + 1];
-        for (k, &(cr, ci)) in c.iter().enumerate() {
-            next[k].0 += cr;
-            next[k].1 += ci;
-            // - r * c_k goes to power one lower
-            next[k + 1].0 -= rr * cr - ri * ci;
-            next[k + 1].1 -= rr * ci + ri * cr;
-        }
-        c = next;
-    }
+    let mut c = vec![(0.0, 0.0); roots.len() + 1];
+    poly_from_roots_into(roots, &mut c);
     c[1..].iter().map(|z| z.0).collect()
+}
+
+/// The complex coefficients of `prod (z - r)`, highest power first, into `c` (one longer than
+/// `roots`), multiplying in one root at a time in place. Allocates nothing.
+fn poly_from_roots_into(roots: &[(f64, f64)], c: &mut [(f64, f64)]) {
+    assert_eq!(c.len(), roots.len() + 1);
+    c[0] = (1.0, 0.0);
+    for (m, &(rr, ri)) in roots.iter().enumerate() {
+        // Degree m -> m + 1: c_k <- c_k - r c_{k-1}, from the top down so c_{k-1} is still old.
+        c[m + 1] = (0.0, 0.0);
+        for k in (1..=m + 1).rev() {
+            let (cr, ci) = c[k - 1];
+            c[k].0 += -(rr * cr - ri * ci);
+            c[k].1 += -(rr * ci + ri * cr);
+        }
+    }
 }
 
 /// Reflect the poles outside (or on) the unit circle to `1/conj(p)`, keeping `F` monic and
@@ -290,20 +302,47 @@ pub fn reflect_unstable(f: &mut [f64]) -> bool {
         f.fill(0.0);
         return true;
     }
-    let mut p = poles(f);
-    if p.len() != f.len() {
-        // Eigen solver failed: shrink towards F = 1, which is always stable.
-        let mut scale = 0.5;
-        while !is_stable(f) {
-            for (j, v) in f.iter_mut().enumerate() {
-                *v *= f64::powi(scale, j as i32 + 1);
+    // A third of the solver's trial steps can need this (lightly damped modes): for the
+    // orders of a sweep it runs in stack buffers.
+    let n = f.len();
+    if n <= STACK_ORDER {
+        let mut z = [(0.0, 0.0); STACK_ORDER];
+        let mut done = [false; STACK_ORDER];
+        let mut c = [(0.0, 0.0); STACK_ORDER + 1];
+        let mut g = [0.0; STACK_ORDER];
+        reflect_with(f, &mut z[..n], &mut done[..n], &mut c[..=n], &mut g[..n]);
+    } else {
+        let (mut z, mut done) = (vec![(0.0, 0.0); n], vec![false; n]);
+        let (mut c, mut g) = (vec![(0.0, 0.0); n + 1], vec![0.0; n]);
+        reflect_with(f, &mut z, &mut done, &mut c, &mut g);
+    }
+    true
+}
+
+/// Orders up to which [`reflect_unstable`] allocates nothing.
+const STACK_ORDER: usize = 64;
+
+/// [`reflect_unstable`] of an unstable, finite `f` in the given buffers (roots `z`, scratch
+/// `done`, coefficients `c` and `g`).
+fn reflect_with(f: &mut [f64], z: &mut [(f64, f64)], done: &mut [bool], c: &mut [(f64, f64)], g: &mut [f64]) {
+    if !aberth_into(f, z, done) {
+        // The rare polynomial the iteration does not settle: the eigen solver (allocates).
+        let p = companion_eigenvalues(f);
+        if p.len() != f.len() {
+            // Eigen solver failed: shrink towards F = 1, which is always stable.
+            let mut scale = 0.5;
+            while !is_stable(f) {
+                for (j, v) in f.iter_mut().enumerate() {
+                    *v *= f64::powi(scale, j as i32 + 1);
+                }
+                scale *= 0.5;
             }
-            scale *= 0.5;
+            return;
         }
-        return true;
+        z.copy_from_slice(&p);
     }
     const RMAX: f64 = 1.0 - 1e-6;
-    for z in p.iter_mut() {
+    for z in z.iter_mut() {
         let r = z.0.hypot(z.1);
         if r >= 1.0 {
             let target = if r > 1.0 + 1e-6 { 1.0 / r } else { RMAX };
@@ -311,12 +350,15 @@ pub fn reflect_unstable(f: &mut [f64]) -> bool {
             *z = (z.0 * s, z.1 * s);
         }
     }
-    let g = poly_from_roots(&p);
-    f.copy_from_slice(&g);
+    poly_from_roots_into(z, c);
+    for (gj, cj) in g.iter_mut().zip(&c[1..]) {
+        *gj = cj.0;
+    }
+    f.copy_from_slice(g);
     if !is_stable(f) {
-        // Rounding left a root on the circle, or inaccurate eigenvalues of a clustered
-        // high-order F left some outside: contract all poles, by 1e-6 at first and doubling
-        // the step each time, so even a root far outside is pulled in within ~60 tries.
+        // Rounding left a root on the circle, or inaccurate roots of a clustered high-order F
+        // left some outside: contract all poles, by 1e-6 at first and doubling the step each
+        // time, so even a root far outside is pulled in within ~60 tries.
         let (mut s, mut step) = (RMAX, 1e-6f64);
         while !is_stable(f) {
             for (j, v) in f.iter_mut().enumerate() {
@@ -326,7 +368,6 @@ pub fn reflect_unstable(f: &mut [f64]) -> bool {
             s *= 1.0 - step;
         }
     }
-    true
 }
 
 #[cfg(test)]
