@@ -72,6 +72,12 @@ fn filters(c: &mut Criterion, s: &Setup) {
     let (b, f) = s.theta_h.split_at(NB);
     let mut out = vec![0.0; s.u.len()];
     c.bench_function("simulate", |bch| bch.iter(|| oe::simulate(black_box(b), black_box(f), DELAY, &s.u, &mut out)));
+    // What a solver trial step filters: (1/F)u, yhat and (1/F)yhat in one fused pass (against
+    // `simulate` plus a second `inv_f` done separately).
+    let (mut xu, mut xy) = (vec![0.0; s.u.len()], vec![0.0; s.u.len()]);
+    c.bench_function("simulate_filtered", |bch| {
+        bch.iter(|| oe::simulate_filtered(black_box(b), black_box(f), DELAY, &s.u, &mut xu, &mut out, &mut xy))
+    });
     // Filtering in place repeatedly would compound the DC gain of 1/F towards overflow, so each
     // pass starts from a fresh copy of u; the 40 kB copy is ~1 us of the measured time.
     c.bench_function("inv_f", |bch| {
