@@ -141,6 +141,21 @@ fn rank1_upper_impl<const FMA: bool>(h: &mut [f64], d: usize, v: &[f64], alpha: 
     }
 }
 
+/// `h[i d + j] += scale sum_k q[k dp + i] p[k dp + j]` for `i <= j < d`: the upper triangle
+/// of `scale Q^T P` for two m x d matrices stored row by row with stride `dp >= d`.
+#[inline(always)]
+fn syrk_upper_impl<const FMA: bool>(h: &mut [f64], d: usize, p: &[f64], q: &[f64], dp: usize, m: usize, scale: f64) {
+    for i in 0..d {
+        for j in i..d {
+            let mut s = 0.0;
+            for k in 0..m {
+                s = madd::<FMA>(q[k * dp + i], p[k * dp + j], s);
+            }
+            h[i * d + j] = madd::<FMA>(scale, s, h[i * d + j]);
+        }
+    }
+}
+
 #[inline(always)]
 fn inv_f_impl<const M: usize, const FMA: bool>(f: &[f64], x: &mut [f64]) {
     let mut a = [0.0; M];
@@ -248,6 +263,9 @@ mod base {
     pub fn correlations(u: &[f64], y: &[f64], r: &[f64], out: &mut [[f64; 6]]) {
         super::correlations_impl::<false>(u, y, r, out)
     }
+    pub fn syrk_upper(h: &mut [f64], d: usize, p: &[f64], q: &[f64], dp: usize, m: usize, scale: f64) {
+        super::syrk_upper_impl::<false>(h, d, p, q, dp, m, scale)
+    }
     pub fn inv_f(f: &[f64], x: &mut [f64]) {
         use super::*;
         inv_f_dispatch!(false, f, x, 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24);
@@ -325,6 +343,82 @@ mod fma {
                 }
             }
         });
+    }
+    /// [`super::syrk_upper_impl`] in register tiles: 4 rows of Q (broadcast) times 4, 8 or
+    /// 12 columns of P (vectors), 16 or fewer accumulators, for every tile touching the upper
+    /// triangle. Rows i0.. are multiples of 4 and `dp` is too, so each tile's loads stay
+    /// inside its padded row.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn syrk_upper(h: &mut [f64], d: usize, p: &[f64], q: &[f64], dp: usize, m: usize, scale: f64) {
+        assert!(dp.is_multiple_of(4) && dp >= d && p.len() >= m * dp && q.len() >= m * dp && h.len() >= d * d);
+        let mut i0 = 0;
+        while i0 < d {
+            let mut j0 = i0;
+            while j0 < d {
+                let w = (dp - j0).min(12) / 4;
+                // SAFETY: rows i0..i0+4 and columns j0..j0+4w lie inside the padded stride dp.
+                unsafe {
+                    match w {
+                        3 => syrk_tile::<3>(h, d, p, q, dp, m, scale, i0, j0),
+                        2 => syrk_tile::<2>(h, d, p, q, dp, m, scale, i0, j0),
+                        _ => syrk_tile::<1>(h, d, p, q, dp, m, scale, i0, j0),
+                    }
+                }
+                j0 += 4 * w;
+            }
+            i0 += 4;
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    unsafe fn syrk_tile<const W: usize>(
+        h: &mut [f64],
+        d: usize,
+        p: &[f64],
+        q: &[f64],
+        dp: usize,
+        m: usize,
+        scale: f64,
+        i0: usize,
+        j0: usize,
+    ) {
+        // SAFETY (whole body): the caller guarantees i0 + 4 <= dp and j0 + 4W <= dp, and
+        // p, q hold m rows of dp.
+        unsafe {
+            let mut acc = [[_mm256_setzero_pd(); W]; 4];
+            let (pp, pq) = (p.as_ptr(), q.as_ptr());
+            for k in 0..m {
+                let rp = pp.add(k * dp + j0);
+                let rq = pq.add(k * dp + i0);
+                let mut v = [_mm256_setzero_pd(); W];
+                for (x, vx) in v.iter_mut().enumerate() {
+                    *vx = _mm256_loadu_pd(rp.add(4 * x));
+                }
+                for (r, accr) in acc.iter_mut().enumerate() {
+                    let b = _mm256_broadcast_sd(&*rq.add(r));
+                    for (a, &vx) in accr.iter_mut().zip(&v) {
+                        *a = _mm256_fmadd_pd(b, vx, *a);
+                    }
+                }
+            }
+            for (r, accr) in acc.iter().enumerate() {
+                let i = i0 + r;
+                if i >= d {
+                    break;
+                }
+                let mut buf = [0.0; 12];
+                for (x, &a) in accr.iter().enumerate() {
+                    _mm256_storeu_pd(buf.as_mut_ptr().add(4 * x), a);
+                }
+                for (c, &s) in buf[..4 * W].iter().enumerate() {
+                    let j = j0 + c;
+                    if j >= i && j < d {
+                        h[i * d + j] = scale.mul_add(s, h[i * d + j]);
+                    }
+                }
+            }
+        }
     }
     #[target_feature(enable = "avx2,fma")]
     pub unsafe fn inv_f(f: &[f64], x: &mut [f64]) {
@@ -493,6 +587,20 @@ pub fn rank1_upper(h: &mut [f64], d: usize, v: &[f64], alpha: f64) {
     base::rank1_upper(h, d, v, alpha)
 }
 
+/// `h[i d + j] += scale sum_k q[k dp + i] p[k dp + j]` for `i <= j < d`: the upper triangle of
+/// `scale Q^T P` for two m x d matrices stored row by row with stride `dp` (a multiple of 4,
+/// `dp >= d`; the padding columns may hold anything finite).
+#[inline]
+pub fn syrk_upper(h: &mut [f64], d: usize, p: &[f64], q: &[f64], dp: usize, m: usize, scale: f64) {
+    assert!(dp.is_multiple_of(4) && dp >= d && p.len() >= m * dp && q.len() >= m * dp && h.len() >= d * d);
+    #[cfg(target_arch = "x86_64")]
+    if has_fma() {
+        // SAFETY: as above; the shapes are checked.
+        return unsafe { fma::syrk_upper(h, d, p, q, dp, m, scale) };
+    }
+    base::syrk_upper(h, d, p, q, dp, m, scale)
+}
+
 /// Apply `1/F` in place: `x_t <- x_t - sum_j f_j x_{t-j}` (zero initial conditions).
 /// Orders up to 24 run a recursion specialised on the order (state in registers).
 #[inline]
@@ -580,6 +688,46 @@ mod tests {
                     let want: f64 =
                         if l < len { a[..len - l].iter().zip(&b[l..]).map(|(x, y)| x * y).sum() } else { 0.0 };
                     assert!((out[l] - want).abs() < 1e-10 && (out2[l] - want).abs() < 1e-10, "len {len} lag {l}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn syrk_tiles_agree_with_the_definition_and_leave_the_lower_triangle() {
+        let mut s = 7u64;
+        let mut next = || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        for d in [1usize, 3, 4, 5, 8, 11, 12, 13, 19, 24, 27, 29] {
+            let dp = d.div_ceil(4) * 4;
+            for m in [0usize, 1, 5, 64, 137] {
+                let p: Vec<f64> = (0..m * dp).map(|_| next()).collect();
+                let q: Vec<f64> = (0..m * dp).map(|_| next()).collect();
+                let h0: Vec<f64> = (0..d * d).map(|_| next()).collect();
+                let scale = -0.75;
+                let mut want = h0.clone();
+                for i in 0..d {
+                    for j in i..d {
+                        want[i * d + j] += scale * (0..m).map(|k| q[k * dp + i] * p[k * dp + j]).sum::<f64>();
+                    }
+                }
+                let mut a = h0.clone();
+                syrk_upper(&mut a, d, &p, &q, dp, m, scale);
+                let mut b = h0.clone();
+                base::syrk_upper(&mut b, d, &p, &q, dp, m, scale);
+                for i in 0..d {
+                    for j in 0..d {
+                        let k = i * d + j;
+                        if j < i {
+                            assert_eq!(a[k], h0[k], "lower ({i},{j}) touched, d={d} m={m}");
+                            assert_eq!(b[k], h0[k]);
+                        } else {
+                            assert!((a[k] - want[k]).abs() < 1e-12, "({i},{j}) d={d} m={m}: {} vs {}", a[k], want[k]);
+                            assert!((b[k] - want[k]).abs() < 1e-12);
+                        }
+                    }
                 }
             }
         }

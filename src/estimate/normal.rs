@@ -98,12 +98,11 @@ pub struct NormalEquations {
     /// Rows whose weight differs from 1.
     rows: Vec<u32>,
     psi: Vec<f64>,
-    /// Packed Jacobian rows of a weighted sum (column-major, m x d), their weights, the
-    /// weighted copy when the weights differ, and the d x d product.
+    /// Packed Jacobian rows of a weighted sum (row-major, m x d padded to a multiple of 4),
+    /// their weights, and the weighted copy when the weights differ.
     packed: Vec<f64>,
     alpha: Vec<f64>,
     scaled: Vec<f64>,
-    product: Vec<f64>,
 }
 
 impl NormalEquations {
@@ -192,8 +191,8 @@ impl NormalEquations {
     /// `h += sum_k alpha_k psi_{t_k} psi_{t_k}^T` (upper triangle) over `t_k = rows[k]`.
     ///
     /// Few rows go one rank-1 update at a time; more are packed into an m x d matrix P and
-    /// the sum taken as one product P^T diag(alpha) P (faer's matmul, register-tiled), which
-    /// does the same multiply-adds without a load and a store of `h` for each of them.
+    /// the sum taken as one product P^T diag(alpha) P (`kernels::syrk_upper`, register-tiled),
+    /// which does the same multiply-adds without a load and a store of `h` for each of them.
     fn add_rows(&mut self, lay: &Layout, xu: &[f64], xy: &[f64], h: &mut [f64]) {
         let d = lay.dim();
         let m = self.rows.len();
@@ -204,52 +203,41 @@ impl NormalEquations {
             }
             return;
         }
-        self.packed.resize(m * d, 0.0);
-        for c in 0..d {
-            let (seq, sign, lag) = lay.col(c);
-            let s = if seq == Seq::U { xu } else { xy };
-            let col = &mut self.packed[c * m..(c + 1) * m];
-            for (p, &t) in col.iter_mut().zip(&self.rows) {
-                let t = t as usize;
-                *p = if t >= lag { sign * s[t - lag] } else { 0.0 };
+        // Rows of P, padded to a multiple of 4 columns for the kernel's vector loads. Row t is
+        // xu[t-delay-nb+1 ..= t-delay] and -xy[t-nf ..= t-1], both reversed.
+        let dp = d.div_ceil(4) * 4;
+        self.packed.resize(m * dp, 0.0);
+        let (nb, dl) = (lay.nb, lay.delay);
+        let first_full = (dl + nb).max(lay.nf + 1).max(dl + 1) - 1;
+        for (row, &t) in self.packed.chunks_exact_mut(dp).zip(&self.rows) {
+            let t = t as usize;
+            if t >= first_full {
+                let (ru, ry) = row[..d].split_at_mut(nb);
+                for (r, &v) in ru.iter_mut().zip(xu[t + 1 - dl - nb..=t - dl].iter().rev()) {
+                    *r = v;
+                }
+                for (r, &v) in ry.iter_mut().zip(xy[t - lay.nf..t].iter().rev()) {
+                    *r = -v;
+                }
+            } else {
+                lay.row(xu, xy, t, &mut row[..d]);
             }
+            row[d..].fill(0.0);
         }
         // One weight for all rows (the Gauss-Newton Huber Hessian: -1 or 1) needs no copy.
         let uniform = self.alpha.iter().all(|&a| a == self.alpha[0]);
         let scale = if uniform { self.alpha[0] } else { 1.0 };
         if !uniform {
-            self.scaled.resize(m * d, 0.0);
-            for c in 0..d {
-                let (src, dst) = (&self.packed[c * m..(c + 1) * m], &mut self.scaled[c * m..(c + 1) * m]);
-                for ((q, &p), &a) in dst.iter_mut().zip(src).zip(&self.alpha) {
+            self.scaled.resize(m * dp, 0.0);
+            for ((dst, src), &a) in self.scaled.chunks_exact_mut(dp).zip(self.packed.chunks_exact(dp)).zip(&self.alpha)
+            {
+                for (q, &p) in dst.iter_mut().zip(src) {
                     *q = a * p;
                 }
             }
         }
-        self.product.resize(d * d, 0.0);
-        let p = faer::MatRef::from_column_major_slice(&self.packed[..m * d], m, d);
-        let q = if uniform { p } else { faer::MatRef::from_column_major_slice(&self.scaled[..m * d], m, d) };
-        let prod = faer::MatMut::from_column_major_slice_mut(&mut self.product[..d * d], d, d);
-        // Only the upper triangle is needed (and read below): half the multiply-adds.
-        use faer::linalg::matmul::triangular::{BlockStructure, matmul};
-        let rect = BlockStructure::Rectangular;
-        matmul(
-            prod,
-            BlockStructure::TriangularUpper,
-            faer::Accum::Replace,
-            q.transpose(),
-            rect,
-            p,
-            rect,
-            scale,
-            faer::Par::Seq,
-        );
-        // Upper triangle (row i <= column j) of the column-major product, element (i, j).
-        for i in 0..d {
-            for j in i..d {
-                h[i * d + j] += self.product[j * d + i];
-            }
-        }
+        let q = if uniform { &self.packed[..m * dp] } else { &self.scaled[..m * dp] };
+        crate::kernels::syrk_upper(h, d, &self.packed[..m * dp], q, dp, m, scale);
     }
 
     /// Upper triangle of the unweighted `J^T J` from lagged dot products (no 1/N).
