@@ -33,6 +33,7 @@ fn finite(v: &[f64]) -> bool {
 
 /// ARX least-squares estimate (via QR), F stabilised. None when the regression is degenerate.
 pub fn arx(prob: &Problem) -> Option<Vec<f64>> {
+    crate::faer_sequential();
     let phi = regressors(prob.u, prob.y, prob.nb, prob.nf, prob.delay);
     let rhs = Mat::from_fn(prob.n(), 1, |t, _| prob.y[t]);
     let sol = phi.col_piv_qr().solve_lstsq(&rhs);
@@ -46,6 +47,7 @@ pub fn arx(prob: &Problem) -> Option<Vec<f64>> {
 
 /// One IV pass with instruments simulated from `theta`.
 fn iv_step(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
+    crate::faer_sequential();
     let (nb, nf) = (prob.nb, prob.nf);
     let x = oe::simulate_vec(&theta[..nb], &theta[nb..], prob.delay, prob.u);
     if !finite(&x) {
