@@ -156,6 +156,21 @@ fn syrk_upper_impl<const FMA: bool>(h: &mut [f64], d: usize, p: &[f64], q: &[f64
     }
 }
 
+/// [`compact`]: branch-free (write every t, advance past the kept ones), since which rows are
+/// kept is unpredictable.
+#[inline(always)]
+fn compact_impl(w: &[f64], skip: f64, rows: &mut [u32], mut alpha: Option<&mut [f64]>) -> usize {
+    let mut m = 0;
+    for (t, &wt) in w.iter().enumerate() {
+        rows[m] = t as u32;
+        if let Some(a) = alpha.as_deref_mut() {
+            a[m] = wt;
+        }
+        m += (wt != skip) as usize;
+    }
+    m
+}
+
 #[inline(always)]
 fn inv_f_impl<const M: usize, const FMA: bool>(f: &[f64], x: &mut [f64]) {
     let mut a = [0.0; M];
@@ -251,6 +266,9 @@ macro_rules! inv_f_dispatch {
 }
 
 mod base {
+    pub fn compact(w: &[f64], skip: f64, rows: &mut [u32], alpha: Option<&mut [f64]>) -> usize {
+        super::compact_impl(w, skip, rows, alpha)
+    }
     pub fn dot(a: &[f64], b: &[f64]) -> f64 {
         super::dot_impl::<false>(a, b)
     }
@@ -419,6 +437,69 @@ mod fma {
                 }
             }
         }
+    }
+    /// [`super::compact_impl`] four rows at a time: a compare gives a 4-bit mask, a table
+    /// the shuffle that packs the kept indices (and weights) to the front, and every store
+    /// writes all four lanes, the slack past `m` being overwritten later. The scalar loop
+    /// carried `m` through every row; this carries it through every fourth.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn compact(w: &[f64], skip: f64, rows: &mut [u32], alpha: Option<&mut [f64]>) -> usize {
+        // Lane order of the kept elements of each 4-bit mask, as 32-bit lane pairs for doubles.
+        const fn table() -> ([[u32; 4]; 16], [[u32; 8]; 16]) {
+            let mut idx = [[0u32; 4]; 16];
+            let mut pairs = [[0u32; 8]; 16];
+            let mut mask = 0;
+            while mask < 16 {
+                let mut k = 0;
+                let mut lane = 0;
+                while lane < 4 {
+                    if mask & (1 << lane) != 0 {
+                        idx[mask][k] = lane as u32;
+                        pairs[mask][2 * k] = 2 * lane as u32;
+                        pairs[mask][2 * k + 1] = 2 * lane as u32 + 1;
+                        k += 1;
+                    }
+                    lane += 1;
+                }
+                mask += 1;
+            }
+            (idx, pairs)
+        }
+        const TABLE: ([[u32; 4]; 16], [[u32; 8]; 16]) = table();
+        let n = w.len();
+        assert!(rows.len() >= n + 3 && alpha.as_ref().is_none_or(|a| a.len() >= n + 3));
+        let n4 = n / 4 * 4;
+        let mut m = 0;
+        // SAFETY: loads read w[t..t+4] with t + 4 <= n4 <= n; stores write rows[m..m+4] and
+        // alpha[m..m+4] with m <= t < n4, inside the n + 3 checked above.
+        unsafe {
+            let sk = _mm256_set1_pd(skip);
+            let pr = rows.as_mut_ptr();
+            let pa = alpha.map(|a| a.as_mut_ptr());
+            let mut t = 0;
+            while t < n4 {
+                let v = _mm256_loadu_pd(w.as_ptr().add(t));
+                let mask = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_NEQ_UQ>(v, sk)) as usize;
+                let order = _mm_loadu_si128(TABLE.0[mask].as_ptr() as *const __m128i);
+                let idx = _mm_add_epi32(_mm_set1_epi32(t as i32), order);
+                _mm_storeu_si128(pr.add(m) as *mut __m128i, idx);
+                if let Some(pa) = pa {
+                    let perm = _mm256_loadu_si256(TABLE.1[mask].as_ptr() as *const __m256i);
+                    let packed = _mm256_permutevar8x32_ps(_mm256_castpd_ps(v), perm);
+                    _mm256_storeu_pd(pa.add(m), _mm256_castps_pd(packed));
+                }
+                m += mask.count_ones() as usize;
+                t += 4;
+            }
+            for (t, &wt) in w.iter().enumerate().skip(n4) {
+                *pr.add(m) = t as u32;
+                if let Some(pa) = pa {
+                    *pa.add(m) = wt;
+                }
+                m += (wt != skip) as usize;
+            }
+        }
+        m
     }
     #[target_feature(enable = "avx2,fma")]
     pub unsafe fn inv_f(f: &[f64], x: &mut [f64]) {
@@ -601,6 +682,20 @@ pub fn syrk_upper(h: &mut [f64], d: usize, p: &[f64], q: &[f64], dp: usize, m: u
     base::syrk_upper(h, d, p, q, dp, m, scale)
 }
 
+/// Indices `t` with `w[t] != skip` into `rows[..m]` and, if given, those `w[t]` into
+/// `alpha[..m]`; returns m. `rows` (and `alpha`) need `w.len() + 3` slots: the entries past
+/// `m` are scratch.
+#[inline]
+pub fn compact(w: &[f64], skip: f64, rows: &mut [u32], alpha: Option<&mut [f64]>) -> usize {
+    assert!(rows.len() >= w.len() + 3 && alpha.as_ref().is_none_or(|a| a.len() >= w.len() + 3));
+    #[cfg(target_arch = "x86_64")]
+    if has_fma() {
+        // SAFETY: as above; the lengths are checked.
+        return unsafe { fma::compact(w, skip, rows, alpha) };
+    }
+    base::compact(w, skip, rows, alpha)
+}
+
 /// Apply `1/F` in place: `x_t <- x_t - sum_j f_j x_{t-j}` (zero initial conditions).
 /// Orders up to 24 run a recursion specialised on the order (state in registers).
 #[inline]
@@ -728,6 +823,34 @@ mod tests {
                             assert!((b[k] - want[k]).abs() < 1e-12);
                         }
                     }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn compact_keeps_the_rows_off_the_skip_value_in_order() {
+        for n in [0usize, 1, 3, 4, 5, 17, 1000] {
+            for skip in [0.0, 1.0] {
+                let w: Vec<f64> =
+                    (0..n).map(|t| [1.0, 0.0, 0.5, 1.0, 0.0, f64::NAN, 1.0][(t * 7 + t / 3) % 7]).collect();
+                let want: Vec<usize> = (0..n).filter(|&t| w[t] != skip).collect();
+                for fast in [true, false] {
+                    let mut rows = vec![0u32; n + 3];
+                    let mut alpha = vec![0.0; n + 3];
+                    let m = if fast {
+                        compact(&w, skip, &mut rows, Some(&mut alpha))
+                    } else {
+                        base::compact(&w, skip, &mut rows, Some(&mut alpha))
+                    };
+                    assert_eq!(m, want.len(), "n={n} skip={skip}");
+                    for (k, &t) in want.iter().enumerate() {
+                        assert_eq!(rows[k] as usize, t);
+                        assert_eq!(alpha[k].to_bits(), w[t].to_bits());
+                    }
+                    let mut rows2 = vec![0u32; n + 3];
+                    assert_eq!(compact(&w, skip, &mut rows2, None), m);
+                    assert_eq!(rows2[..m], rows[..m]);
                 }
             }
         }

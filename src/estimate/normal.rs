@@ -56,31 +56,19 @@ impl Layout {
     }
 }
 
-/// `rows` <- the t with `w[t] != skip`, and `alpha` (if given) <- those `w[t]`. Branch-free
-/// (write every t, advance past the kept ones): which rows are kept is unpredictable, and
-/// the branchy filter was most of the time of building the normal equations outside the
-/// correlations.
+/// `rows` <- the t with `w[t] != skip`, and `alpha` (if given) <- those `w[t]`.
 fn compact_rows(rows: &mut Vec<u32>, alpha: Option<&mut Vec<f64>>, w: &[f64], skip: f64) {
     let n = w.len();
-    rows.resize(n, 0);
-    let mut m = 0;
-    match alpha {
-        None => {
-            for (t, &wt) in w.iter().enumerate() {
-                rows[m] = t as u32;
-                m += (wt != skip) as usize;
-            }
-        }
+    rows.resize(n + 3, 0);
+    let m = match alpha {
+        None => crate::kernels::compact(w, skip, rows, None),
         Some(alpha) => {
-            alpha.resize(n, 0.0);
-            for (t, &wt) in w.iter().enumerate() {
-                rows[m] = t as u32;
-                alpha[m] = wt;
-                m += (wt != skip) as usize;
-            }
+            alpha.resize(n + 3, 0.0);
+            let m = crate::kernels::compact(w, skip, rows, Some(alpha));
             alpha.truncate(m);
+            m
         }
-    }
+    };
     rows.truncate(m);
 }
 
