@@ -10,7 +10,8 @@
 //! 1e-4 (METHOD.md 8: local minima differ in the 5th digit):
 //! - `chains` (default, the sweep's default start strategy): the pair's k values are those of
 //!   the paper grid (40, log-spaced over [0.05, 2]) plus the peer's, expressed in oesweep's
-//!   sigma (k = gamma_peer / sigma), walked in increasing order by [`estimate::Chains`];
+//!   sigma (k = gamma_peer / sigma), walked in increasing order by [`estimate::Chains`] and
+//!   back by [`estimate::ChainWalk::walk_back`], as the sweep does;
 //! - `ls`: every peer cell on its own from theta_LS and each extra start.
 //!
 //! Prints the share of cells where oesweep is no worse, the worst cases, and the work done.
@@ -102,10 +103,17 @@ fn main() {
                 ks.extend(peer_cells.iter().enumerate().map(|(i, &(gamma, _))| (gamma / ls.sigma, Some(i))));
                 ks.sort_by(|a, b| a.0.total_cmp(&b.0));
                 let mut chains = estimate::Chains::new(&ls.theta(), &ls.alternatives);
-                for (k, peer) in ks {
-                    let (h, _) = chains.step(&prob, ls.sigma, k, &judge, &opts, ws);
+                let mut walk = estimate::ChainWalk::default();
+                for &(k, _) in &ks {
+                    let (h, which) = chains.step(&prob, ls.sigma, k, &judge, &opts, ws);
                     iterations += h.iterations;
-                    if let Some(i) = peer {
+                    walk.cells.push(Some((h, which)));
+                }
+                // The sweep's backward pass over the pair (see `ChainWalk`).
+                let grid: Vec<f64> = ks.iter().map(|&(k, _)| k).collect();
+                walk.walk_back(&prob, ls.sigma, &grid, &judge, &opts, ws);
+                for (cell, &(_, peer)) in walk.cells.iter().zip(&ks) {
+                    if let (Some((h, _)), Some(i)) = (cell, peer) {
                         ours[i] = h.criterion;
                     }
                 }

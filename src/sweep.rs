@@ -336,9 +336,15 @@ fn chain_cells(
     };
     let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay };
     let mut chains = estimate::Chains::new(theta_ls, &ls.alternatives);
+    // The up walk, then the backward pass over the whole pair (`ChainWalk`), which may still
+    // change any cell: a pair's rows are final, and handed out, only when both are done. A
+    // stop in between drops the pair's new rows (at most one pair per worker is redone).
+    let mut walk = estimate::ChainWalk::default();
+    let mut seconds = Vec::with_capacity(order.len());
+    let mut panics: Vec<Option<String>> = Vec::with_capacity(order.len());
     for (&ki, &was_done) in order.iter().zip(done) {
         if !was_done && stopped() {
-            break;
+            return out;
         }
         let k = plan.ks[ki];
         let t = Instant::now();
@@ -346,19 +352,50 @@ fn chain_cells(
             failpoint(pair.nb, pair.nf, ki);
             chains.step(&prob, *sigma, k, judge, &ctx.solver, ws)
         }));
+        seconds.push(t.elapsed().as_secs_f64());
+        match run {
+            Ok(cell) => {
+                walk.cells.push(Some(cell));
+                panics.push(None);
+            }
+            Err(e) => {
+                walk.cells.push(None);
+                panics.push(Some(format!("Huber fit panicked: {}", panic_message(e))));
+            }
+        }
+    }
+    let ks: Vec<f64> = order.iter().map(|&ki| plan.ks[ki]).collect();
+    let back = catch_unwind(AssertUnwindSafe(|| {
+        let mut walk = walk.clone();
+        let extra = walk.walk_back(&prob, *sigma, &ks, judge, &ctx.solver, ws);
+        (walk, extra)
+    }));
+    // A panic in the backward pass leaves the up walk's cells as they were.
+    let extra = match back {
+        Ok((walked, extra)) => {
+            walk = walked;
+            extra
+        }
+        Err(_) => vec![0.0; order.len()],
+    };
+    for (i, (&ki, &was_done)) in order.iter().zip(done).enumerate() {
         if was_done {
             continue;
         }
-        let row = match run {
-            Ok((fit, which)) => CellRow::from_huber_of_pair(
-                &fit,
+        let row = match (&walk.cells[i], &panics[i]) {
+            (Some((fit, which)), _) => CellRow::from_huber_of_pair(
+                fit,
                 (pair.nb, pair.nf, delay),
                 *sigma,
                 ki,
-                if which == 0 { "chain_ls" } else { "chain_alt" },
-                t.elapsed().as_secs_f64(),
+                match *which {
+                    0 => "chain_ls",
+                    estimate::ChainWalk::BACK => "chain_back",
+                    _ => "chain_alt",
+                },
+                seconds[i] + extra[i],
             ),
-            Err(e) => failed(ki, format!("Huber fit panicked: {}", panic_message(e))),
+            (None, reason) => failed(ki, reason.clone().unwrap_or_else(|| "Huber fit panicked".into())),
         };
         on_row(&row);
         progress.inc(1);

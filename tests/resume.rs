@@ -19,8 +19,9 @@ use std::time::{Duration, Instant};
 static SERIAL: Mutex<()> = Mutex::new(());
 
 const PAIRS: usize = 6 * 9;
-/// k values per pair: enough that a pair's continuation chain spans several checkpoint
-/// intervals, so kills leave pairs with some of their k values done.
+/// k values per pair: a `chains` pair hands out its rows together once its walk is complete,
+/// and with this many per pair the 500-row checkpoint batches split some pairs, so kills
+/// leave pairs with some of their k values done.
 const KS: usize = 30;
 const CELLS: usize = PAIRS * KS;
 
