@@ -365,19 +365,10 @@ fn chain_cells(
         }
     }
     let ks: Vec<f64> = order.iter().map(|&ki| plan.ks[ki]).collect();
-    let back = catch_unwind(AssertUnwindSafe(|| {
-        let mut walk = walk.clone();
-        let extra = walk.walk_back(&prob, *sigma, &ks, judge, &ctx.solver, ws);
-        (walk, extra)
-    }));
-    // A panic in the backward pass leaves the up walk's cells as they were.
-    let extra = match back {
-        Ok((walked, extra)) => {
-            walk = walked;
-            extra
-        }
-        Err(_) => vec![0.0; order.len()],
-    };
+    // The pass replaces a cell only by a complete, lower fit, so after a panic in it every cell
+    // is still a valid fit (of the up walk or of the pass).
+    let extra = catch_unwind(AssertUnwindSafe(|| walk.walk_back(&prob, *sigma, &ks, judge, &ctx.solver, ws)))
+        .unwrap_or_else(|_| vec![0.0; order.len()]);
     for (i, (&ki, &was_done)) in order.iter().zip(done).enumerate() {
         if was_done {
             continue;
