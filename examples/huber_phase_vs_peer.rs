@@ -12,7 +12,8 @@
 //! and then one Huber minimisation of W with gamma = k sigma from theta_LS, exactly as the
 //! peer does (no extra starts, no continuation along k), timed as the median of 3 runs on
 //! this thread. Each tool starts from its own theta_LS; both minimise W with ftol 1e-8.
-//! Prints the cells of the listed order pairs one per line, then the distribution of
+//! Prints the cells of the listed order pairs one per line and each listed pair's total over
+//! its k values, then the distribution of
 //! peer/ours time ratios over all cells and the iterations of both sides (ours: outer
 //! Levenberg-Marquardt iterations; peer: Jacobian evaluations of scipy's trf).
 
@@ -73,6 +74,8 @@ fn main() {
     let (mut ours_total, mut peer_total) = (0.0, 0.0);
     let (mut ours_it, mut peer_it) = (0usize, 0u64);
     let mut ratios = Vec::with_capacity(cells.len());
+    // Per listed order pair: (ours, peer) seconds summed over its k values, and their count.
+    let mut pair_totals: Vec<((usize, usize), f64, f64, usize)> = Vec::new();
     for c in &cells {
         let prob = Problem { u: &rec.u, y: &rec.y, nb: c.nb, nf: c.nf, delay: 1 };
         if ls.as_ref().is_none_or(|(key, _)| *key != (c.nb, c.nf)) {
@@ -97,6 +100,14 @@ fn main() {
         peer_it += c.peer_jacobians;
         ratios.push(c.peer_seconds / ours);
         if show.contains(&(c.nb, c.nf)) {
+            match pair_totals.iter_mut().find(|p| p.0 == (c.nb, c.nf)) {
+                Some(p) => {
+                    p.1 += ours;
+                    p.2 += c.peer_seconds;
+                    p.3 += 1;
+                }
+                None => pair_totals.push(((c.nb, c.nf), ours, c.peer_seconds, 1)),
+            }
             println!(
                 "OE({},{}) k = {:<7.4}: ours {:6.3} ms ({:3} it), peer {:6.1} ms ({:3} jac): {:5.1}x",
                 c.nb,
@@ -109,6 +120,14 @@ fn main() {
                 c.peer_seconds / ours
             );
         }
+    }
+    for ((nb, nf), ours, peer, count) in &pair_totals {
+        println!(
+            "OE({nb},{nf}) over its {count} k: ours {:.2} ms, peer {:.1} ms in total ({:.1}x)",
+            ours * 1e3,
+            peer * 1e3,
+            peer / ours
+        );
     }
     ratios.sort_by(f64::total_cmp);
     let q = |p: f64| ratios[((ratios.len() - 1) as f64 * p).round() as usize];
