@@ -612,6 +612,7 @@ impl Writer {
                             buf.clear();
                             // Rows of a failed write were in this batch: all is saved again.
                             saved.error = None;
+                            crate::failpoint::after_part(saved.parts as u64);
                             true
                         }
                         Err(e) => {

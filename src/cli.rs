@@ -531,6 +531,8 @@ fn write_results(out: &Path, job: &job::Job, rows: &[CellRow]) -> Result<reduce:
         fit_tolerance: job.selection.fit_tolerance,
     };
     let selection = reduce::select(rows, &sel_opts);
+    // A report of the previous table would describe models this table may not have.
+    crate::report::remove_report(out);
     export::parquet::write_cells(&out.join("cells.parquet"), rows)?;
     export::json::write_json(&out.join("selection.json"), &selection)?;
     export::json::write_json(&out.join("job.json"), &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job })?;
@@ -586,6 +588,12 @@ fn run_job(a: &RunArgs) -> Result<u8> {
     };
     let parts = checkpoint::folder(&out, a.shard);
     let manifest = Manifest::of_job(&p.job)?;
+    // Locked before the checkpoint is read: another run of this folder could be changing it.
+    std::fs::create_dir_all(&out).map_err(|e| Error::output(&out, format!("cannot create output folder: {e}")))?;
+    let _lock = match a.shard {
+        Some(s) => crate::lock::lock_shard(&out, s)?,
+        None => crate::lock::lock_output(&out)?,
+    };
     // A checkpoint of another job is bad input too: refused before anything is written.
     let existing = match (a.force, a.shard) {
         (true, _) => checkpoint::Existing::default(),
@@ -593,7 +601,6 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         (false, None) => checkpoint::inspect_all(&out, &manifest, &plan)?,
     };
 
-    std::fs::create_dir_all(&out).map_err(|e| Error::output(&out, format!("cannot create output folder: {e}")))?;
     checkpoint::open(&out, a.shard, &manifest, &p.job.job, a.force)?;
     let (pairs, cells) = (plan.pairs.len(), plan.n_cells());
     let resumed_huber = existing.huber_rows();
@@ -716,6 +723,7 @@ fn run_merge(a: &MergeArgs) -> Result<u8> {
     if !out.is_dir() {
         return Err(Error::input(out, "not a folder"));
     }
+    let _lock = crate::lock::lock_output(out)?;
     let merged = ["cells.parquet", "selection.json", "job.json"].iter().all(|f| out.join(f).is_file());
     if !out.join(checkpoint::PARTS_DIR).exists() && merged {
         println!("{}: already merged (no checkpoint left), nothing to do", out.display());

@@ -1,6 +1,6 @@
 //! oesweep: robust (Huber) output-error identification and model-order search.
 //!
-//! The numerical specification is `../shared/METHOD.md`; module docs cite its sections.
+//! The method as implemented is `docs/METHOD.md`; module docs cite its sections ("METHOD.md N").
 //! Data flows one way: data -> estimate (per cell) -> (sweep -> reduce -> export).
 
 pub mod checkpoint;
@@ -9,8 +9,10 @@ pub mod data;
 pub mod error;
 pub mod estimate;
 pub mod export;
+pub mod failpoint;
 pub mod job;
 pub mod kernels;
+pub mod lock;
 pub mod oe;
 pub mod plan;
 pub mod progress;

@@ -283,21 +283,6 @@ fn run_in_pool(
     rows
 }
 
-/// Test hook: `OESWEEP_FAILPOINT=panic:NB,NF,K_INDEX` makes that Huber cell panic inside its
-/// worker, as a bug in the numerics would, so the fault isolation can be tested end to end
-/// (tests/fault_isolation.rs). Read once; unset in normal use.
-fn failpoint(nb: usize, nf: usize, k_index: usize) {
-    static TARGET: std::sync::OnceLock<Option<(usize, usize, usize)>> = std::sync::OnceLock::new();
-    let target = TARGET.get_or_init(|| {
-        let v = std::env::var("OESWEEP_FAILPOINT").ok()?;
-        let mut it = v.strip_prefix("panic:")?.split(',').map(|x| x.trim().parse::<usize>().ok());
-        Some((it.next()??, it.next()??, it.next()??))
-    });
-    if *target == Some((nb, nf, k_index)) {
-        panic!("failpoint OESWEEP_FAILPOINT hit at OE({nb},{nf}) k index {k_index}");
-    }
-}
-
 /// The Huber cells of pair `p` under the `chains` strategy, in increasing k (`order`). The
 /// chains carry state from cell to cell that the rows do not hold, so a pair with unfinished
 /// cells is walked again from its first cell: the walk is deterministic, so the cells an
@@ -349,7 +334,7 @@ fn chain_cells(
         let k = plan.ks[ki];
         let t = Instant::now();
         let run = catch_unwind(AssertUnwindSafe(|| {
-            failpoint(pair.nb, pair.nf, ki);
+            crate::failpoint::before_cell(pair.nb, pair.nf, ki);
             chains.step(&prob, *sigma, k, judge, &ctx.solver, ws)
         }));
         seconds.push(t.elapsed().as_secs_f64());
@@ -419,7 +404,7 @@ fn huber_cell(
     let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay: plan.delay };
     let t = Instant::now();
     let run = catch_unwind(AssertUnwindSafe(|| {
-        failpoint(pair.nb, pair.nf, cell.k_index);
+        crate::failpoint::before_cell(pair.nb, pair.nf, cell.k_index);
         // theta_LS, then the pair's extra starts; the lowest criterion wins, ties the earlier.
         let from_ls = |ws: &mut Workspace| {
             let (fit, which) =

@@ -3,7 +3,9 @@
 //! written, and the process exits 1.
 //!
 //! The panic is injected with the `OESWEEP_FAILPOINT` hook (`panic:NB,NF,K_INDEX`), which
-//! makes exactly that Huber cell panic inside the worker, as a bug in the numerics would.
+//! makes exactly that Huber cell panic inside the worker, as a bug in the numerics would. The
+//! hook exists only in builds with the `failpoints` feature, which the test suite enables
+//! (src/failpoint.rs); `tests/release_binary.sh` checks that a release build ignores it.
 
 mod common;
 

@@ -212,22 +212,12 @@ fn plan_parquet(bytes: &[u8]) {
         "output": "out"
     });
     fs::write(dir.path().join("job.json"), job.to_string()).unwrap();
-    // Retried: during a long campaign a concurrent `cargo build` may be replacing the binary.
-    let mut attempts = 0;
-    let o = loop {
-        match std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
-            .arg("plan")
-            .arg(dir.path().join("job.json"))
-            .env("RUST_BACKTRACE", "0")
-            .output()
-        {
-            Err(_) if attempts < 50 => {
-                attempts += 1;
-                std::thread::sleep(std::time::Duration::from_millis(200));
-            }
-            r => break r.unwrap(),
-        }
-    };
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .arg("plan")
+        .arg(dir.path().join("job.json"))
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("binary runs");
     let stderr = String::from_utf8_lossy(&o.stderr);
     if o.status.signal() == Some(6) && stderr.starts_with("memory allocation of") {
         eprintln!("known polars-parquet abort on a corrupt page header: {}", stderr.lines().next().unwrap());

@@ -283,3 +283,25 @@ fn browser_renders_report_with_every_image() {
     let dom = dump_dom(&chromium, &page).expect("second render");
     assert_eq!(dom.matches("data-loaded=\"false\"").count(), 2, "missing and broken figures not detected");
 }
+
+/// A run over a folder with a report of an earlier table, without `--report`: the old page and
+/// figures are removed with the old table, so the folder never shows a report of other models.
+#[test]
+fn a_rerun_without_report_removes_the_old_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = sweep(dir.path(), true, small_grid(), &["--report"]);
+    let figures = check_report(&out);
+    assert!(!figures.is_empty());
+    let job = dir.path().join("job.json");
+    let o = oesweep(&["run", job.to_str().unwrap(), "--quiet", "--force"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(out.join("cells.parquet").exists());
+    assert!(!out.join("report.html").exists(), "stale report.html left");
+    for f in &figures {
+        assert!(!out.join(f).exists(), "stale {f} left");
+    }
+    // And `run --report` over it writes a fresh one.
+    let o = oesweep(&["run", job.to_str().unwrap(), "--quiet", "--force", "--report"]);
+    assert!(o.status.success(), "{}", text(&o));
+    check_report(&out);
+}

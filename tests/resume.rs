@@ -1,22 +1,23 @@
-//! Interrupted sweeps through the binary: SIGKILL at random instants followed by resumes gives
-//! exactly the table of an uninterrupted run (one row per cell, same numbers); SIGINT/SIGTERM
-//! stop cleanly with exit 130 and a resumable folder; a checkpoint of a different job or of
-//! changed data is refused (exit 2) unless --force. Unix only: the tests send signals.
+//! Interrupted sweeps through the binary: SIGKILL followed by resumes gives exactly the table of
+//! an uninterrupted run (one row per cell, same numbers); SIGINT/SIGTERM stop cleanly with exit
+//! 130 and a resumable folder; a checkpoint of a different job or of changed data is refused
+//! (exit 2) unless --force; one run per output folder. Unix only: the tests send signals.
+//!
+//! Nothing here depends on timing. The states the tests assert on are reached through the
+//! pause points of the `failpoints` build (src/failpoint.rs), which the test suite enables: a
+//! test waits until the binary says it is paused (a marker file), then kills or signals it.
+//! The kills at random instants that remain assert only what holds at every instant.
 #![cfg(unix)]
 
 mod common;
 
+use oesweep::checkpoint::BATCH_ROWS;
 use oesweep::export::parquet::read_cells;
 use oesweep::table::CellRow;
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Output, Stdio};
-use std::sync::Mutex;
 use std::time::{Duration, Instant};
-
-/// The tests here time their interruptions against a measured run; running them one at a
-/// time keeps those measurements meaningful on a small machine.
-static SERIAL: Mutex<()> = Mutex::new(());
 
 const PAIRS: usize = 6 * 9;
 /// k values per pair: a `chains` pair hands out its rows together once its walk is complete,
@@ -25,22 +26,35 @@ const PAIRS: usize = 6 * 9;
 const KS: usize = 30;
 const CELLS: usize = PAIRS * KS;
 
-fn serial() -> std::sync::MutexGuard<'static, ()> {
-    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
-}
-
 fn oesweep(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_oesweep")).args(args).output().expect("binary runs")
 }
 
-fn spawn_run(job: &Path, extra: &[&str]) -> Child {
-    Command::new(env!("CARGO_BIN_EXE_oesweep"))
-        .args(["run", job.to_str().unwrap(), "--threads", "2", "--quiet", "--checkpoint-every", "0.2"])
-        .args(extra)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("binary starts")
+/// `oesweep run JOB --threads 2 --quiet EXTRA...`, with `OESWEEP_FAILPOINT` when given.
+fn spawn_run(job: &Path, extra: &[&str], failpoint: Option<&str>) -> Child {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_oesweep"));
+    cmd.args(["run", job.to_str().unwrap(), "--threads", "2", "--quiet"]).args(extra);
+    if let Some(f) = failpoint {
+        cmd.env("OESWEEP_FAILPOINT", f);
+    }
+    cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("binary starts")
+}
+
+/// Wait until the paused run has created `marker`. The limit only keeps a broken build from
+/// hanging the suite; the state itself is reached whatever the machine's speed.
+fn wait_for_pause(child: &mut Child, marker: &Path) {
+    let t = Instant::now();
+    while !marker.exists() {
+        if let Some(status) = child.try_wait().unwrap() {
+            let mut err = String::new();
+            if let Some(mut e) = child.stderr.take() {
+                std::io::Read::read_to_string(&mut e, &mut err).unwrap();
+            }
+            panic!("the run ended ({status}) before its pause point\n{err}");
+        }
+        assert!(t.elapsed() < Duration::from_secs(600), "no pause after 600 s");
+        std::thread::sleep(Duration::from_millis(2));
+    }
 }
 
 fn text(o: &Output) -> String {
@@ -123,14 +137,9 @@ fn saved_rows(parts: &Path) -> usize {
     keys.len()
 }
 
-/// Huber rows in the checkpoint. Also read while a run is going, which may merge and delete
-/// its parts at any moment: a part that vanished between listing and reading counts nothing.
+/// Huber rows in the checkpoint.
 fn huber_rows(parts: &Path) -> usize {
-    part_files(parts)
-        .iter()
-        .filter_map(|p| read_cells(p).ok())
-        .map(|rows| rows.iter().filter(|r| r.k_index.is_some()).count())
-        .sum()
+    part_files(parts).iter().map(|p| read_cells(p).unwrap().iter().filter(|r| r.k_index.is_some()).count()).sum()
 }
 
 /// Order pairs with some but not all of their Huber cells in the checkpoint.
@@ -152,8 +161,20 @@ fn reference(job: &Path) -> f64 {
     t.elapsed().as_secs_f64()
 }
 
+/// Run (or resume) `job` until its checkpoint writer has made its first part durable, and
+/// SIGKILL it there. Parts are written only when [`BATCH_ROWS`] rows wait (the time trigger is
+/// set out of reach), and the writer pauses right after the part, so the checkpoint then holds
+/// exactly one more batch than before, whatever the machine's speed.
+fn kill_after_one_part(job: &Path, marker: &Path) {
+    let failpoint = format!("pause_part:1:{}", marker.display());
+    let mut child = spawn_run(job, &["--checkpoint-every", "1e6"], Some(&failpoint));
+    wait_for_pause(&mut child, marker);
+    child.kill().unwrap();
+    wait_at_most(&mut child, Duration::from_secs(600));
+    std::fs::remove_file(marker).unwrap();
+}
+
 fn kill_and_resume(start: &str) {
-    let _guard = serial();
     let dir = tempfile::tempdir().unwrap();
     make_data(dir.path());
     let reference_job = write_job(dir.path(), "ref.json", "est.csv", start, KS, "ref");
@@ -164,61 +185,58 @@ fn kill_and_resume(start: &str) {
     let job = write_job(dir.path(), "job.json", "est.csv", start, KS, "out");
     let out = dir.path().join("out");
     let parts = out.join("parts");
+    let marker = dir.path().join("paused");
+
+    // Killed right after the first part: the PAIRS least-squares rows (the first phase ends
+    // before any Huber cell starts) and BATCH_ROWS - PAIRS = 446 Huber rows. That is not a
+    // multiple of KS, so some pair has only some of its k values saved: the resume must
+    // finish a pair whose chain was cut.
+    kill_after_one_part(&job, &marker);
+    assert_eq!(saved_rows(&parts), BATCH_ROWS);
+    assert_eq!(huber_rows(&parts), BATCH_ROWS - PAIRS);
+    assert!(!(BATCH_ROWS - PAIRS).is_multiple_of(KS) && partial_pairs(&parts) > 0);
+    assert!(!out.join("cells.parquet").exists());
+    // Resumed and killed the same way: one more batch, the first one untouched.
+    kill_after_one_part(&job, &marker);
+    assert_eq!(saved_rows(&parts), 2 * BATCH_ROWS);
+
+    // Kills at random instants (parts every 0.2 s): wherever they land, the checkpoint only
+    // grows and never holds a cell twice (`saved_rows` checks), and the run that completes
+    // merges it into the uninterrupted table.
     let mut rng = common::Lcg(0x5eed ^ start.len() as u64);
-    let (mut kills, mut saved_before, mut partial_chains) = (0, 0, 0);
-    let (mut completed, mut merged_then_killed) = (None, false);
-    for round in 0..8 {
-        let mut child = spawn_run(&job, &[]);
-        // Even rounds: 5 .. 25 % of an uninterrupted run's time after the (re)start, so kills
-        // land anywhere from start-up on. Odd rounds: 0 .. 10 % after this run saved its first
-        // Huber row, so on a slow machine too, and however long the least-squares phase
-        // takes, some kills land amid the Huber cells and every other round makes progress.
-        let t = Instant::now();
-        if round % 2 == 1 {
-            let before = huber_rows(&parts);
-            while huber_rows(&parts) == before && child.try_wait().unwrap().is_none() {
-                assert!(t.elapsed() < Duration::from_secs(30), "no Huber row saved after 30 s");
-                std::thread::sleep(Duration::from_millis(5));
-            }
-        }
-        let fraction = if round % 2 == 1 { 0.1 * rng.next() } else { 0.05 + 0.2 * rng.next() };
-        std::thread::sleep(Duration::from_secs_f64(secs * fraction));
-        let delay = t.elapsed().as_secs_f64();
+    let mut saved_before = 2 * BATCH_ROWS;
+    let mut completed = None;
+    for _ in 0..3 {
+        let mut child = spawn_run(&job, &["--checkpoint-every", "0.2"], None);
+        std::thread::sleep(Duration::from_secs_f64(secs * 0.5 * rng.next()));
         if child.try_wait().unwrap().is_some() {
-            // Finished before the kill: this was the completing resume.
             completed = Some(child.wait_with_output().unwrap());
             break;
         }
         child.kill().unwrap();
-        wait_at_most(&mut child, Duration::from_secs(10));
-        kills += 1;
-        if out.join("cells.parquet").exists() {
-            // Killed in the merge, after cells.parquet was written (see below).
-            eprintln!("{start}: killed after {delay:.2} s, after the merge");
-            merged_then_killed = true;
+        wait_at_most(&mut child, Duration::from_secs(600));
+        if !parts.exists() {
+            // Killed after the merge had deleted the checkpoint: the results are complete.
             break;
         }
         let saved = saved_rows(&parts);
-        partial_chains += partial_pairs(&parts);
-        assert!(saved >= saved_before, "round {round}: the checkpoint lost rows ({saved_before} -> {saved})");
-        eprintln!("{start}: killed after {delay:.2} s, {saved} of {} rows saved", PAIRS + CELLS);
+        assert!(saved >= saved_before, "the checkpoint lost rows ({saved_before} -> {saved})");
         saved_before = saved;
     }
-    assert!(kills >= 3, "only {kills} kills hit a running sweep");
-    assert!(partial_chains > 0, "no kill left a pair with only some of its k values done");
-    assert!(saved_before > 0 && saved_before < PAIRS + CELLS, "the resume must start from a partial checkpoint");
-
-    // Killed after writing cells.parquet but before deleting the checkpoint: a rerun resumes
-    // every cell and merges again.
-    if !merged_then_killed || parts.exists() {
+    if parts.exists() {
+        // Not finished yet, or killed after writing cells.parquet but before deleting the
+        // checkpoint: a rerun resumes every saved cell and merges again.
         let o = completed.unwrap_or_else(|| {
-            let mut child = spawn_run(&job, &[]);
-            wait_at_most(&mut child, Duration::from_secs(60));
+            let mut child = spawn_run(&job, &[], None);
+            wait_at_most(&mut child, Duration::from_secs(600));
             child.wait_with_output().unwrap()
         });
         assert_eq!(o.status.code(), Some(0), "{}", text(&o));
         assert!(String::from_utf8_lossy(&o.stdout).contains("resumed from the checkpoint"), "{}", text(&o));
         assert!(!parts.exists(), "the checkpoint is deleted after the merge");
+    } else if let Some(o) = completed {
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+        assert!(String::from_utf8_lossy(&o.stdout).contains("resumed from the checkpoint"), "{}", text(&o));
     }
     let got = table(&out.join("cells.parquet"));
     assert_eq!(got.len(), PAIRS + CELLS);
@@ -228,7 +246,7 @@ fn kill_and_resume(start: &str) {
 }
 
 #[test]
-fn sigkill_at_random_instants_then_resume_gives_the_uninterrupted_table() {
+fn sigkill_then_resume_gives_the_uninterrupted_table() {
     kill_and_resume("ls");
 }
 
@@ -242,19 +260,22 @@ fn sigkill_then_resume_continues_neighbour_chains_exactly() {
     kill_and_resume("neighbour");
 }
 
-/// Start a run and send `signal` once the checkpoint holds Huber cells; returns the output.
+/// The first Huber cell of the plan (the first pair, the first k), where `interrupt` pauses.
+const FIRST_CELL: &str = "5,4,0";
+
+/// Start a run that pauses before the plan's first Huber cell with every worker held (the
+/// least-squares phase is done and saved in the writer's buffer), send `signal` there, and
+/// return the output. The pause ends on the signal after the run's stop flag is set, so the
+/// paused cells finish and no other cell starts.
 fn interrupt(job: &Path, signal: libc::c_int, extra: &[&str]) -> Output {
-    let parts = job.parent().unwrap().join("out/parts");
-    let mut child = spawn_run(job, extra);
-    let t = Instant::now();
-    while huber_rows(&parts) == 0 {
-        assert!(child.try_wait().unwrap().is_none(), "the run ended before its first checkpoint");
-        assert!(t.elapsed() < Duration::from_secs(30), "no checkpoint part after 30 s");
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    let marker = job.parent().unwrap().join("paused");
+    let failpoint = format!("pause_cell:{FIRST_CELL}:{}", marker.display());
+    let mut child = spawn_run(job, extra, Some(&failpoint));
+    wait_for_pause(&mut child, &marker);
     // SAFETY: plain kill(2) on the pid of our own child, which has not been reaped yet.
     assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, signal) }, 0);
-    wait_at_most(&mut child, Duration::from_secs(30));
+    wait_at_most(&mut child, Duration::from_secs(600));
+    let _ = std::fs::remove_file(&marker);
     child.wait_with_output().unwrap()
 }
 
@@ -273,7 +294,6 @@ fn snapshot(dir: &Path) -> Vec<(PathBuf, u64, std::time::SystemTime)> {
 
 #[test]
 fn sigint_stops_cleanly_and_another_job_is_refused_unless_forced() {
-    let _guard = serial();
     let dir = tempfile::tempdir().unwrap();
     make_data(dir.path());
     let job = write_job(dir.path(), "job.json", "est.csv", "ls", KS, "out");
@@ -340,4 +360,98 @@ fn sigint_stops_cleanly_and_another_job_is_refused_unless_forced() {
     assert!(!String::from_utf8_lossy(&o.stdout).contains("resumed"), "{}", text(&o));
     assert_eq!(table(&out.join("cells.parquet")).len(), PAIRS + PAIRS * 11);
     assert!(!parts.exists());
+}
+
+/// `oesweep ARGS` while another run holds the folder: exit 2, one line naming the folder, what
+/// holds it and `holder` (a pid, or the shard with its pid).
+fn refused(args: &[&str], folder: &Path, holder: &str) {
+    let o = oesweep(args);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains(&folder.display().to_string()) && err.contains("in use by") && err.contains(holder), "{err}");
+}
+
+#[test]
+fn one_run_per_output_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    make_data(dir.path());
+    let job = write_job(dir.path(), "job.json", "est.csv", "ls", 5, "out");
+    let out = dir.path().join("out");
+    let marker = dir.path().join("paused");
+    let failpoint = format!("pause_cell:{FIRST_CELL}:{}", marker.display());
+    let j = job.to_str().unwrap();
+
+    // A run paused mid-sweep holds the folder: a second run and a merge are refused, naming
+    // its pid, and change nothing; released, the first run completes alone.
+    let mut first = spawn_run(&job, &[], Some(&failpoint));
+    wait_for_pause(&mut first, &marker);
+    let pid = format!("pid {}", first.id());
+    refused(&["run", j, "--quiet"], &out, &pid);
+    refused(&["run", j, "--quiet", "--force"], &out, &pid);
+    refused(&["merge", out.to_str().unwrap()], &out, &pid);
+    refused(&["run", j, "--quiet", "--shard", "0/2"], &out, &pid);
+    std::fs::remove_file(&marker).unwrap();
+    wait_at_most(&mut first, Duration::from_secs(600));
+    let o = first.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert_eq!(table(&out.join("cells.parquet")).len(), PAIRS + PAIRS * 5);
+
+    // A run killed with SIGKILL leaves no lock: the next one runs (and resumes).
+    let mut killed = spawn_run(&job, &["--force"], Some(&failpoint));
+    wait_for_pause(&mut killed, &marker);
+    killed.kill().unwrap();
+    wait_at_most(&mut killed, Duration::from_secs(600));
+    std::fs::remove_file(&marker).unwrap();
+    let o = oesweep(&["run", j, "--quiet"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert_eq!(table(&out.join("cells.parquet")).len(), PAIRS + PAIRS * 5);
+
+    // Two runs started together into a fresh folder: whichever order they take the lock in,
+    // each completes or is refused with the message, at least one completes, and the table
+    // has one row per cell.
+    let both = write_job(dir.path(), "both.json", "est.csv", "ls", 5, "both");
+    let (a, b) = (spawn_run(&both, &[], None), spawn_run(&both, &[], None));
+    let outputs = [a.wait_with_output().unwrap(), b.wait_with_output().unwrap()];
+    for o in &outputs {
+        match o.status.code() {
+            Some(0) => {}
+            Some(2) => {
+                assert!(String::from_utf8_lossy(&o.stderr).contains("in use by another oesweep run"), "{}", text(o))
+            }
+            _ => panic!("{}", text(o)),
+        }
+    }
+    assert!(outputs.iter().any(|o| o.status.code() == Some(0)));
+    assert_eq!(table(&dir.path().join("both/cells.parquet")).len(), PAIRS + PAIRS * 5);
+}
+
+#[test]
+fn shards_lock_their_own_share_and_keep_whole_runs_and_merges_out() {
+    let dir = tempfile::tempdir().unwrap();
+    make_data(dir.path());
+    let job = write_job(dir.path(), "job.json", "est.csv", "chains", 5, "out");
+    let out = dir.path().join("out");
+    let marker = dir.path().join("paused");
+    let j = job.to_str().unwrap();
+    // The shard that holds the plan's first pair pauses there; call it shard 0/2 below.
+    let plan = oesweep::plan::Plan::from_job(&oesweep::job::load(&job).unwrap());
+    let (s0, s1) = if oesweep::shard::layout(&plan, 2)[0].contains(&0) { ("0/2", "1/2") } else { ("1/2", "0/2") };
+    let failpoint = format!("pause_cell:{FIRST_CELL}:{}", marker.display());
+    let mut shard0 = spawn_run(&job, &["--shard", s0], Some(&failpoint));
+    wait_for_pause(&mut shard0, &marker);
+    let pid = format!("shard {s0} (pid {})", shard0.id());
+    refused(&["run", j, "--quiet", "--shard", s0], &out, &format!("another run of shard {s0} (pid {})", shard0.id()));
+    refused(&["run", j, "--quiet"], &out, &pid);
+    refused(&["merge", out.to_str().unwrap()], &out, &pid);
+    // The other shard runs beside it.
+    let o = oesweep(&["run", j, "--quiet", "--threads", "2", "--shard", s1]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    std::fs::remove_file(&marker).unwrap();
+    wait_at_most(&mut shard0, Duration::from_secs(600));
+    let o = shard0.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let o = oesweep(&["merge", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert_eq!(table(&out.join("cells.parquet")).len(), PAIRS + PAIRS * 5);
 }

@@ -238,6 +238,13 @@ pub fn write_report(folder: &Path) -> Result<PathBuf> {
     Ok(path)
 }
 
+/// Remove the report of an earlier table (`report.html` and every `report-*.svg`), when new
+/// results replace that table. Best effort, like [`remove_stale_figures`].
+pub fn remove_report(folder: &Path) {
+    let _ = std::fs::remove_file(folder.join("report.html"));
+    remove_stale_figures(folder, &BTreeSet::new());
+}
+
 /// Remove `report-*.svg` files of an earlier report (e.g. heat maps of other k). Best effort: a
 /// stale figure is harmless, the page does not link it.
 fn remove_stale_figures(folder: &Path, keep: &BTreeSet<String>) {

@@ -1,0 +1,98 @@
+//! The engine's numbers do not move under refactoring: a small grid on the bundled piezo data,
+//! run with every start strategy, gives the tables checked in under `tests/fixtures/`, bit for
+//! bit in every column but `seconds`, and the same picks.
+//!
+//! The fixtures were written by this test with `OESWEEP_BLESS=1` from the engine as it was
+//! before the module reorganisation of issue 16. Bless again only for a change that is meant
+//! to change the numbers, and say so in the commit.
+//!
+//! Bit-for-bit holds on machines with the AVX2+FMA kernels the fixtures were made with (every
+//! machine of this project); elsewhere (the generic kernels round differently) the test
+//! compares to a relative 1e-6 and says so.
+
+use oesweep::export::parquet::read_cells;
+use oesweep::table::CellRow;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const STARTS: [&str; 4] = ["chains", "ls", "neighbour", "best"];
+
+fn fixture(start: &str, file: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures").join(format!("same-table-{start}-{file}"))
+}
+
+fn run(dir: &Path, start: &str) -> PathBuf {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data");
+    let job = serde_json::json!({
+        "name": format!("same-table-{start}"),
+        "data": {"path": data.join("piezo_est.csv"), "ts": 1e-4},
+        "validation": {"path": data.join("piezo_val.csv"), "y": "y0"},
+        "grid": {"nb": [7, 9], "nf": [4, 7], "k": {"from": 0.05, "to": 2.0, "count": 6, "spacing": "log"}},
+        "band_hz": [0, 1500],
+        "start": start,
+        "output": dir.join(start),
+    });
+    let path = dir.join(format!("{start}.json"));
+    std::fs::write(&path, job.to_string()).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .args(["run", path.to_str().unwrap(), "--threads", "2", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(o.status.code() == Some(0) || o.status.code() == Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+    dir.join(start)
+}
+
+fn without_seconds(mut rows: Vec<CellRow>) -> Vec<CellRow> {
+    for r in &mut rows {
+        r.seconds = 0.0;
+    }
+    rows
+}
+
+fn close(a: Option<f64>, b: Option<f64>) -> bool {
+    match (a, b) {
+        (Some(a), Some(b)) => a == b || (a - b).abs() <= 1e-6 * a.abs().max(b.abs()),
+        (a, b) => a == b,
+    }
+}
+
+fn exact_kernels() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
+#[test]
+fn every_start_strategy_gives_the_checked_in_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let bless = std::env::var_os("OESWEEP_BLESS").is_some();
+    for start in STARTS {
+        let out = run(dir.path(), start);
+        if bless {
+            std::fs::create_dir_all(fixture(start, "").parent().unwrap()).unwrap();
+            std::fs::copy(out.join("cells.parquet"), fixture(start, "cells.parquet")).unwrap();
+            std::fs::copy(out.join("selection.json"), fixture(start, "selection.json")).unwrap();
+            continue;
+        }
+        let got = without_seconds(read_cells(&out.join("cells.parquet")).unwrap());
+        let want = without_seconds(read_cells(&fixture(start, "cells.parquet")).unwrap());
+        assert_eq!(got.len(), want.len(), "start = {start}");
+        if exact_kernels() {
+            for (g, w) in got.iter().zip(&want) {
+                assert!(g == w, "start = {start}: row differs\n got  {g:?}\n want {w:?}");
+            }
+            let sel = std::fs::read_to_string(out.join("selection.json")).unwrap();
+            assert_eq!(sel, std::fs::read_to_string(fixture(start, "selection.json")).unwrap(), "start = {start}");
+        } else {
+            eprintln!("no AVX2+FMA kernels here: comparing {start} to a relative 1e-6, not bit for bit");
+            for (g, w) in got.iter().zip(&want) {
+                assert_eq!((g.method, g.nb, g.nf, g.k_index), (w.method, w.nb, w.nf, w.k_index));
+                assert!(close(g.criterion, w.criterion), "start = {start}: {g:?} vs {w:?}");
+            }
+        }
+    }
+    assert!(!bless, "fixtures written; run again without OESWEEP_BLESS");
+}
