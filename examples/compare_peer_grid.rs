@@ -104,14 +104,15 @@ fn main() {
                 ks.sort_by(|a, b| a.0.total_cmp(&b.0));
                 let mut chains = estimate::Chains::new(&ls.theta(), &ls.alternatives);
                 let mut walk = estimate::ChainWalk::default();
+                let pair = estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts };
                 for &(k, _) in &ks {
-                    let (h, which) = chains.step(&prob, ls.sigma, k, &judge, &opts, ws);
+                    let (h, which) = chains.step(&pair, k, ws);
                     iterations += h.iterations;
-                    walk.cells.push(Some((h, which)));
+                    walk.cells.push(Some((h, estimate::StartKind::Chain { start: which })));
                 }
                 // The sweep's backward pass over the pair (see `ChainWalk`).
                 let grid: Vec<f64> = ks.iter().map(|&(k, _)| k).collect();
-                walk.walk_back(&prob, ls.sigma, &grid, &judge, &opts, ws);
+                walk.walk_back(&pair, &grid, ws);
                 for (cell, &(_, peer)) in walk.cells.iter().zip(&ks) {
                     if let (Some((h, _)), Some(i)) = (cell, peer) {
                         ours[i] = h.criterion;

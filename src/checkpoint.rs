@@ -65,8 +65,7 @@ use crate::export;
 use crate::job::{Job, ValidJob};
 use crate::plan::Plan;
 use crate::shard::Shard;
-use crate::sweep::{RowKey, row_key};
-use crate::table::{CellRow, Method};
+use crate::table::{CellRow, Method, RowKey, huber_key, ls_key};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use sha2::{Digest, Sha256};
@@ -312,12 +311,9 @@ pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
         return Err(refuse(parts, format!("holds an interrupted run of a different job: {what}")));
     }
 
-    let huber_keys: HashSet<RowKey> = plan
-        .cells()
-        .iter()
-        .map(|c| (true, plan.pairs[c.pair].nb as u32, plan.pairs[c.pair].nf as u32, Some(c.k_index as u32)))
-        .collect();
-    let ls_keys: HashSet<RowKey> = plan.pairs.iter().map(|p| (false, p.nb as u32, p.nf as u32, None)).collect();
+    let huber_keys: HashSet<RowKey> =
+        plan.cells().iter().map(|c| huber_key(plan.pairs[c.pair].nb, plan.pairs[c.pair].nf, c.k_index)).collect();
+    let ls_keys: HashSet<RowKey> = plan.pairs.iter().map(|p| ls_key(p.nb, p.nf)).collect();
     let mut seen = HashSet::new();
     let mut out =
         Existing { parts: files.len(), next_part: files.last().map_or(1, |(n, _)| n + 1), ..Default::default() };
@@ -331,7 +327,7 @@ pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
             other => other,
         })?;
         for (i, row) in rows.into_iter().enumerate() {
-            let key = row_key(&row);
+            let key = row.key();
             let k_ok = match (row.k_index, row.k) {
                 (Some(ki), Some(k)) => plan.ks.get(ki as usize).is_some_and(|&pk| pk.to_bits() == k.to_bits()),
                 (None, None) => true,
@@ -463,13 +459,13 @@ pub fn shard_folders(parts: &Path) -> Result<Vec<(PathBuf, Shard)>> {
 pub fn inspect_all(out: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
     let parts = out.join(PARTS_DIR);
     let mut all = inspect(&parts, now, plan)?;
-    let mut seen: HashSet<RowKey> = all.rows.iter().map(row_key).collect();
+    let mut seen: HashSet<RowKey> = all.rows.iter().map(CellRow::key).collect();
     for (dir, _) in shard_folders(&parts)? {
         let more = inspect(&dir, now, plan)?;
         all.parts += more.parts;
         all.duplicates += more.duplicates;
         for row in more.rows {
-            if seen.insert(row_key(&row)) {
+            if seen.insert(row.key()) {
                 all.rows.push(row);
             } else {
                 all.duplicates += 1;
@@ -539,9 +535,9 @@ pub fn gather(out: &Path) -> Result<Gathered> {
         let existing = inspect(&dir, &manifest, &plan)?;
         duplicates += existing.duplicates;
         for row in existing.rows {
-            match found.get(&row_key(&row)) {
+            match found.get(&row.key()) {
                 None => {
-                    found.insert(row_key(&row), (row, folders.len()));
+                    found.insert(row.key(), (row, folders.len()));
                 }
                 Some((first, at)) => {
                     let same = CellRow { seconds: 0.0, ..row.clone() } == CellRow { seconds: 0.0, ..first.clone() };
@@ -565,7 +561,7 @@ pub fn gather(out: &Path) -> Result<Gathered> {
         folders.push((dir, shard, existing.parts));
     }
     let mut rows: Vec<CellRow> = found.into_values().map(|(r, _)| r).collect();
-    crate::sweep::sort_rows(&mut rows);
+    crate::table::sort_rows(&mut rows);
     Ok(Gathered { job, plan, rows, folders, duplicates })
 }
 

@@ -1,27 +1,17 @@
-//! Command-line interface: argument definitions and the commands they run.
-//!
-//! Each command validates its inputs first (a bad input is one [`Error`] naming the file and
-//! what is wrong; the binary exits 2), then calls the library.
+//! Command-line interface: argument definitions, their conversion into the library's
+//! requests ([`crate::engine`], [`crate::slurm`]), and the printing of the outcomes. No
+//! estimation, file layout or rule lives here.
 
-use crate::checkpoint::{self, Manifest, StopOnSignal, Writer};
-use crate::data::{self, Record};
+use crate::checkpoint;
+use crate::engine::{self, FitReport, FitRequest, MergeEnd, RunEnd, RunOptions};
 use crate::error::{Error, Result};
-use crate::estimate::{self, HuberFit, HuberHessian, Judge, LsFit, Problem, SolverOptions, Workspace};
-use crate::export;
-use crate::job::{self, Inputs, ValidJob};
+use crate::estimate::{HuberHessian, SolverOptions};
 use crate::plan::Plan;
-use crate::progress::Progress;
-use crate::reduce::{self, ReduceOptions};
+use crate::reduce;
 use crate::shard::{self, Shard};
 use crate::simulate;
-use crate::spectral::SpectralEstimate;
-use crate::spectral::{self, WelchOptions};
-use crate::sweep::{self, Context};
-use crate::table::{CellRow, Method};
-use clap::{Args, Parser, Subcommand};
-use std::collections::BTreeSet;
-use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
 #[command(name = "oesweep", version, about = "Robust (Huber) output-error identification and model-order search")]
@@ -170,7 +160,7 @@ pub struct FitArgs {
     pub ftol: f64,
     /// Huber Hessian: exact Gauss-Newton (L1 rows weight 0) or IRLS (weight gamma/|e|).
     #[arg(long, value_enum, default_value = "gauss-newton")]
-    pub huber_hessian: HuberHessian,
+    pub huber_hessian: HessianArg,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,
@@ -210,6 +200,22 @@ pub struct SimulateArgs {
     pub outlier_range: (f64, f64),
 }
 
+/// `--huber-hessian` ([`HuberHessian`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum HessianArg {
+    GaussNewton,
+    Irls,
+}
+
+impl From<HessianArg> for HuberHessian {
+    fn from(a: HessianArg) -> Self {
+        match a {
+            HessianArg::GaussNewton => HuberHessian::GaussNewton,
+            HessianArg::Irls => HuberHessian::Irls,
+        }
+    }
+}
+
 fn parse_band(s: &str) -> std::result::Result<(f64, f64), String> {
     let parts: Vec<&str> = s.split(',').collect();
     if parts.len() != 2 {
@@ -236,117 +242,27 @@ pub fn run(cli: Cli) -> Result<u8> {
     }
 }
 
-/// Report of `oesweep fit`.
-#[derive(serde::Serialize)]
-pub struct FitReport {
-    pub data: PathBuf,
-    pub n: usize,
-    pub validation: Option<PathBuf>,
-    pub validation_column: Option<String>,
-    pub nb: usize,
-    pub nf: usize,
-    pub delay: usize,
-    pub band_hz: Option<(f64, f64)>,
-    pub sigma: f64,
-    #[serde(flatten)]
-    pub huber: HuberFit,
-    pub converged: bool,
-    pub seconds: f64,
-    pub ls: LsFit,
-}
-
-fn read_validation(path: &Path, u: &str, y: &str, val_y: Option<&str>) -> Result<Record> {
-    let col = match val_y {
-        Some(c) => c.to_string(),
-        None => {
-            if data::column_names(path)?.iter().any(|c| c == "y0") {
-                "y0".to_string()
-            } else {
-                y.to_string()
-            }
-        }
-    };
-    data::read_record(path, u, &col)
-}
-
-fn validate_fit_args(a: &FitArgs) -> Result<()> {
-    if a.nb == 0 {
-        return Err(Error::Invalid("--nb must be at least 1".into()));
-    }
-    if !(a.k.is_finite() && a.k > 0.0) {
-        return Err(Error::Invalid(format!("--k must be a positive number, got {}", a.k)));
-    }
-    if let Some(ts) = a.ts
-        && !(ts.is_finite() && ts > 0.0)
-    {
-        return Err(Error::Invalid(format!("--ts must be a positive number of seconds, got {ts}")));
-    }
-    if let Some((lo, hi)) = a.band {
-        let Some(ts) = a.ts else {
-            return Err(Error::Invalid("--band needs --ts (the sampling period in seconds)".into()));
-        };
-        let nyq = 0.5 / ts;
-        if !(lo >= 0.0 && hi > lo && hi <= nyq) {
-            return Err(Error::Invalid(format!("--band {lo},{hi}: need 0 <= LO < HI <= Nyquist frequency {nyq} Hz")));
-        }
-    }
-    if a.max_iterations == 0 {
-        return Err(Error::Invalid("--max-iterations must be at least 1".into()));
-    }
-    Ok(())
-}
-
 fn run_fit(a: &FitArgs) -> Result<u8> {
-    validate_fit_args(a)?;
-    let est = data::read_record(&a.data, &a.u, &a.y)?;
-    data::check_for_model(&est, a.nb, a.nf, a.delay)?;
-    let val = match &a.validation {
-        Some(p) => {
-            let v = read_validation(p, &a.u, &a.y, a.val_y.as_deref())?;
-            data::check_for_model(&v, a.nb, a.nf, a.delay)?;
-            Some(v)
-        }
-        None => None,
-    };
-    let spec = match (a.band, a.ts) {
-        (Some((lo, hi)), Some(ts)) => {
-            let s = spectral::welch(&est.u, &est.y, ts, &WelchOptions::default())?;
-            let bins = s.band(lo, hi);
-            Some((s, bins))
-        }
-        _ => None,
-    };
-    let judge = Judge {
-        validation: val.as_ref().map(|v| (&v.u[..], &v.y[..])),
-        band: spec.as_ref().map(|(s, bins)| (s, &bins[..])),
-    };
-    let opts = SolverOptions {
-        max_iterations: a.max_iterations,
-        ftol: a.ftol,
-        huber_hessian: a.huber_hessian,
-        ..Default::default()
-    };
-    let prob = Problem { u: &est.u, y: &est.y, nb: a.nb, nf: a.nf, delay: a.delay };
-    let mut ws = Workspace::new();
-    let t0 = Instant::now();
-    let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
-    let (huber, _) = estimate::fit_huber_multi(&prob, &ls, a.k, &judge, &opts, &mut ws);
-    let seconds = t0.elapsed().as_secs_f64();
-    let report = FitReport {
+    let req = FitRequest {
         data: a.data.clone(),
-        n: est.u.len(),
+        u: a.u.clone(),
+        y: a.y.clone(),
         validation: a.validation.clone(),
-        validation_column: val.as_ref().map(|v| v.y_name.clone()),
+        val_y: a.val_y.clone(),
         nb: a.nb,
         nf: a.nf,
+        k: a.k,
         delay: a.delay,
-        band_hz: a.band,
-        sigma: ls.sigma,
-        converged: huber.termination.converged(),
-        huber,
-        seconds,
-        ls,
+        ts: a.ts,
+        band: a.band,
+        solver: SolverOptions {
+            max_iterations: a.max_iterations,
+            ftol: a.ftol,
+            huber_hessian: a.huber_hessian.into(),
+            ..Default::default()
+        },
     };
+    let report = engine::fit(&req)?;
     if a.json {
         println!("{}", serde_json::to_string(&report).expect("report serialises"));
     } else {
@@ -390,11 +306,10 @@ fn print_fit_summary(r: &FitReport) {
 }
 
 fn run_simulate(a: &SimulateArgs) -> Result<u8> {
-    let sys = simulate::read_system(&a.system)?;
+    let (lo, hi) = a.outlier_range;
     if a.n == 0 {
         return Err(Error::Invalid("--n must be at least 1".into()));
     }
-    let (lo, hi) = a.outlier_range;
     if !(a.noise_std >= 0.0 && a.noise_std.is_finite()) {
         return Err(Error::Invalid(format!("--noise-std must be >= 0, got {}", a.noise_std)));
     }
@@ -404,62 +319,34 @@ fn run_simulate(a: &SimulateArgs) -> Result<u8> {
     if !(lo >= 0.0 && hi >= lo && hi.is_finite()) {
         return Err(Error::Invalid(format!("--outlier-range {lo},{hi}: need 0 <= MIN <= MAX")));
     }
-    let noise = match a.student_t {
-        Some(dof) if dof > 0.0 => simulate::NoiseKind::StudentT { dof },
-        Some(dof) => return Err(Error::Invalid(format!("--student-t needs positive degrees of freedom, got {dof}"))),
-        None => simulate::NoiseKind::Gaussian,
-    };
+    if let Some(dof) = a.student_t
+        && (dof <= 0.0 || dof.is_nan())
+    {
+        return Err(Error::Invalid(format!("--student-t needs positive degrees of freedom, got {dof}")));
+    }
     let opts = simulate::SimOptions {
         n: a.n,
         bits: a.bits,
         amplitude: a.amplitude,
         seed: a.seed,
         noise_std: a.noise_std,
-        noise,
+        noise: match a.student_t {
+            Some(dof) => simulate::NoiseKind::StudentT { dof },
+            None => simulate::NoiseKind::Gaussian,
+        },
         outliers: (a.outlier_prob > 0.0).then_some(simulate::Outliers {
             probability: a.outlier_prob,
-            min: lo,
-            max: hi,
+            min: a.outlier_range.0,
+            max: a.outlier_range.1,
         }),
     };
-    let rec = simulate::generate(&sys, &opts)?;
-    simulate::write_csv(&a.out, &rec)?;
-    eprintln!("wrote {} ({} samples)", a.out.display(), a.n);
+    let n = engine::simulate(&a.system, &a.out, &opts)?;
+    eprintln!("wrote {} ({n} samples)", a.out.display());
     Ok(0)
 }
 
-/// A job, its data and everything derived from them before estimation starts.
-struct Prepared {
-    job: ValidJob,
-    inputs: Inputs,
-    spectral: Option<(SpectralEstimate, Vec<usize>)>,
-    plan: Plan,
-}
-
-fn prepare(path: &Path) -> Result<Prepared> {
-    let mut job = job::load(path)?;
-    let inputs = job::load_inputs(&mut job)?;
-    let spectral = match job.job.band_hz {
-        Some([lo, hi]) => {
-            let s = spectral::welch(&inputs.est.u, &inputs.est.y, job.ts(), &WelchOptions::default())
-                .map_err(|e| Error::input(&job.job.data.path, e.to_string()))?;
-            let bins = s.band(lo, hi);
-            if bins.is_empty() {
-                return Err(Error::input(
-                    path,
-                    format!("field 'band_hz': [{lo}, {hi}] Hz holds no frequency bin of the spectral estimate"),
-                ));
-            }
-            Some((s, bins))
-        }
-        None => None,
-    };
-    let plan = Plan::from_job(&job);
-    Ok(Prepared { job, inputs, spectral, plan })
-}
-
-fn describe_grid(job: &ValidJob) -> String {
-    let ks = &job.ks;
+fn describe_grid(p: &engine::Prepared) -> String {
+    let (job, ks) = (&p.job, &p.job.ks);
     let (kmin, kmax) = ks.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &k| (a.min(k), b.max(k)));
     format!(
         "nB {}..{} x nF {}..{} x {} values of k in [{kmin}, {kmax}]",
@@ -472,17 +359,17 @@ fn describe_grid(job: &ValidJob) -> String {
 }
 
 fn run_plan(a: &PlanArgs) -> Result<u8> {
-    let p = prepare(&a.job)?;
+    let p = engine::prepare(&a.job)?;
     let j = &p.job;
     println!("job        {} ({})", j.job.name, j.file.display());
     println!("data       {} ({} samples, Ts = {} s)", j.job.data.path.display(), p.inputs.est.u.len(), j.ts());
     if let (Some(v), Some(rec)) = (&j.job.validation, &p.inputs.val) {
         println!("validation {} ({} samples, column '{}')", v.path.display(), rec.u.len(), rec.y_name);
     }
-    println!("grid       {}", describe_grid(j));
+    println!("grid       {}", describe_grid(&p));
     println!("cells      {} Huber cells + {} least-squares fits", j.n_cells(), j.n_pairs());
     println!("start      {}", j.job.start.as_str());
-    println!("ranking    by {:?} fit", reduce::choose_basis(p.inputs.val.is_some(), p.spectral.is_some()));
+    println!("ranking    by {:?} fit", p.ranking());
     println!("output     {}", j.output().display());
     if let Some(n) = a.shards {
         if n == 0 {
@@ -514,31 +401,6 @@ fn print_layout(plan: &Plan, n: usize) {
     }
 }
 
-/// `job.json` in the output folder: the normalised job and the program that ran it.
-#[derive(serde::Serialize)]
-struct JobAsRun<'a> {
-    oesweep_version: &'static str,
-    #[serde(flatten)]
-    job: &'a job::Job,
-}
-
-/// The result files of a complete (or `--partial`) table: `cells.parquet`, `selection.json`,
-/// `job.json`. Returns the picks.
-fn write_results(out: &Path, job: &job::Job, rows: &[CellRow]) -> Result<reduce::Selection> {
-    let sel_opts = ReduceOptions {
-        basis: reduce::choose_basis(job.validation.is_some(), job.band_hz.is_some()),
-        min_tolerance: job.selection.min_tolerance,
-        fit_tolerance: job.selection.fit_tolerance,
-    };
-    let selection = reduce::select(rows, &sel_opts);
-    // A report of the previous table would describe models this table may not have.
-    crate::report::remove_report(out);
-    export::parquet::write_cells(&out.join("cells.parquet"), rows)?;
-    export::json::write_json(&out.join("selection.json"), &selection)?;
-    export::json::write_json(&out.join("job.json"), &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job })?;
-    Ok(selection)
-}
-
 fn print_picks(selection: &reduce::Selection) {
     for (label, pick) in [("M1 (W minima)  ", &selection.m1), ("M2 (L1C minima)", &selection.m2)] {
         match pick {
@@ -557,338 +419,189 @@ fn print_picks(selection: &reduce::Selection) {
     }
 }
 
-fn failed_cells(rows: &[CellRow]) -> usize {
-    rows.iter().filter(|r| r.method == Method::Huber && !r.ok()).count()
+/// The page of a report, or its error after the summary was printed.
+fn print_report(report: Option<Result<PathBuf>>) -> Result<()> {
+    if let Some(page) = report {
+        println!("report in {}", page?.display());
+    }
+    Ok(())
 }
 
-/// `oesweep run`: validate everything (job, data, an existing checkpoint) before writing
-/// anything; resume from the checkpoint when it holds an interrupted run of this job (see
-/// [`checkpoint`]; a whole run also takes the cells of shard folders); run the remaining cells
-/// while the checkpoint writer saves them; on a signal stop, save and return 130. A whole run
-/// then merges, reduces, writes the results and deletes the parts; a shard (`--shard I/N`,
-/// only its share of the plan, see [`shard`]) stops once its rows are saved, for `oesweep
-/// merge` to combine.
+/// `oesweep run` ([`engine::run`]).
 fn run_job(a: &RunArgs) -> Result<u8> {
-    if !(a.checkpoint_every.is_finite() && a.checkpoint_every > 0.0) {
-        return Err(Error::Invalid(format!(
-            "--checkpoint-every must be a positive number of seconds, got {}",
-            a.checkpoint_every
-        )));
-    }
-    if a.shard.is_some() && a.report {
-        return Err(Error::Invalid(
-            "--report needs the merged table: use `oesweep merge OUTPUT --report` once all shards are done".into(),
-        ));
-    }
-    let p = prepare(&a.job)?;
-    let out = p.job.output().to_path_buf();
-    let (plan, label) = match a.shard {
-        Some(s) => (shard::plan_of(&p.plan, s).0, format!("{} shard {s}", p.job.job.name)),
-        None => (p.plan.clone(), p.job.job.name.clone()),
+    let opts = RunOptions {
+        threads: a.threads,
+        quiet: a.quiet,
+        force: a.force,
+        checkpoint_every: a.checkpoint_every,
+        shard: a.shard,
+        report: a.report,
     };
-    let parts = checkpoint::folder(&out, a.shard);
-    let manifest = Manifest::of_job(&p.job)?;
-    // Locked before the checkpoint is read: another run of this folder could be changing it.
-    std::fs::create_dir_all(&out).map_err(|e| Error::output(&out, format!("cannot create output folder: {e}")))?;
-    let _lock = match a.shard {
-        Some(s) => crate::lock::lock_shard(&out, s)?,
-        None => crate::lock::lock_output(&out)?,
-    };
-    // A checkpoint of another job is bad input too: refused before anything is written.
-    let existing = match (a.force, a.shard) {
-        (true, _) => checkpoint::Existing::default(),
-        (false, Some(_)) => checkpoint::inspect(&parts, &manifest, &plan)?,
-        (false, None) => checkpoint::inspect_all(&out, &manifest, &plan)?,
-    };
-
-    checkpoint::open(&out, a.shard, &manifest, &p.job.job, a.force)?;
-    let (pairs, cells) = (plan.pairs.len(), plan.n_cells());
-    let resumed_huber = existing.huber_rows();
-    let resumed_rows = existing.rows.len();
-    if resumed_rows > 0 && !a.quiet {
-        eprintln!(
-            "resuming from {} ({} parts): {} of {cells} cells and {} of {pairs} least-squares fits already done",
-            parts.display(),
-            existing.parts,
-            resumed_huber,
-            resumed_rows - resumed_huber,
-        );
-    }
-    if existing.duplicates > 0 {
-        eprintln!(
-            "warning: {}: {} duplicate rows ignored (the first of each cell is kept)",
-            parts.display(),
-            existing.duplicates
-        );
-    }
-    let ctx = Context {
-        est: &p.inputs.est,
-        val: p.inputs.val.as_ref(),
-        band: p.spectral.as_ref().map(|(s, b)| (s, &b[..])),
-        solver: p.job.job.solver.clone(),
-    };
-    let writer = Writer::start(
-        parts.clone(),
-        existing.next_part,
-        Duration::from_secs_f64(a.checkpoint_every),
-        checkpoint::BATCH_ROWS,
-    );
-    let progress = Progress::new(cells - resumed_huber, a.quiet);
-    let outcome = {
-        let signals = StopOnSignal::install();
-        let tx = writer.sender();
-        // A send fails only if the writer thread is gone; the row is still in the outcome.
-        let on_row = |row: &CellRow| {
-            let _ = tx.send(row.clone());
-        };
-        let control = sweep::Control { done: existing.rows, on_row: &on_row, stop: signals.flag() };
-        sweep::run(&plan, &ctx, a.threads, &progress, control)
-    };
-    progress.finish();
-    let saved = writer.finish();
-    if let Some(e) = &saved.error {
-        eprintln!("warning: {} finished rows could not be saved to the checkpoint: {e}", saved.unsaved);
-    }
-    let shard_arg = a.shard.map_or(String::new(), |s| format!(" --shard {s}"));
-    if outcome.interrupted {
-        let done_huber = outcome.rows.iter().filter(|r| r.method == Method::Huber).count();
-        eprintln!(
-            "interrupted: {} of {cells} cells finished ({} in this run); they are saved in {}",
-            done_huber,
-            outcome.computed,
-            parts.display()
-        );
-        eprintln!(
-            "to resume, run `oesweep run {}{shard_arg}` again (with --force to start over instead)",
-            a.job.display()
-        );
-        return Ok(130);
-    }
-    let failed = outcome.failed_cells();
-    let rate = outcome.computed as f64 / outcome.seconds.max(1e-9);
-
-    if let Some(s) = a.shard {
-        // The checkpoint is this shard's only result: rows that did not reach it are lost.
-        if let Some(e) = saved.error {
-            return Err(Error::output(
-                &parts,
-                format!("{} finished rows could not be saved ({e}); run the shard again to redo them", saved.unsaved),
-            ));
-        }
-        println!("{label}: {cells} cells ({failed} failed) + {pairs} least-squares fits, saved in {}", parts.display());
-        if resumed_rows > 0 {
-            println!(
-                "{} cells resumed from the checkpoint, {} computed in this run",
-                outcome.resumed, outcome.computed
-            );
-        }
-        println!("wall time {:.2} s, {rate:.1} cells/s", outcome.seconds);
-        println!("when all {} shards are done: oesweep merge {}", s.count, out.display());
-        return Ok(if failed > 0 { 1 } else { 0 });
-    }
-
-    let selection = write_results(&out, &p.job.job, &outcome.rows)?;
-    println!("{label}: {cells} cells ({failed} failed) + {pairs} least-squares fits");
-    if resumed_rows > 0 {
-        println!(
-            "{} cells and {} least-squares fits resumed from the checkpoint, {} cells computed in this run",
-            outcome.resumed,
-            resumed_rows - outcome.resumed,
-            outcome.computed
-        );
-    }
-    println!("wall time {:.2} s, {rate:.1} cells/s", outcome.seconds);
-    print_picks(&selection);
-    println!("results in {}", out.display());
-    // cells.parquet is complete: the checkpoint has served. If this fails, a rerun finds every
-    // cell done and merges again.
-    if let Err(e) = checkpoint::remove(&out) {
-        eprintln!("warning: {e}");
-    }
-    if a.report {
-        let page = crate::report::write_report(&out)?;
-        println!("report in {}", page.display());
-    }
-    Ok(if failed > 0 { 1 } else { 0 })
-}
-
-/// `oesweep merge`: read every checkpoint folder of an output folder (shards, or an
-/// interrupted whole run), check that together they hold every cell of the job exactly once,
-/// and write the result files exactly as a whole run does (same rows, same order, same
-/// reducer). Missing cells: list them and exit 1 without writing, unless `--partial`. A
-/// complete merge deletes the checkpoint, like a whole run; a folder already merged is left
-/// as it is (so a merge job that runs twice succeeds twice).
-fn run_merge(a: &MergeArgs) -> Result<u8> {
-    let out = &a.folder;
-    if !out.is_dir() {
-        return Err(Error::input(out, "not a folder"));
-    }
-    let _lock = crate::lock::lock_output(out)?;
-    let merged = ["cells.parquet", "selection.json", "job.json"].iter().all(|f| out.join(f).is_file());
-    if !out.join(checkpoint::PARTS_DIR).exists() && merged {
-        println!("{}: already merged (no checkpoint left), nothing to do", out.display());
-    } else {
-        let g = checkpoint::gather(out)?;
-        if g.duplicates > 0 {
-            eprintln!("note: {} cells were saved twice (identical rows); each is kept once", g.duplicates);
-        }
-        let missing = shard::missing(&g.plan, &g.rows);
-        let (pairs, cells) = (g.plan.pairs.len(), g.plan.n_cells());
-        if !missing.is_empty() {
+    let on_resume = |r: &engine::Resumed| {
+        if r.cells + r.ls > 0 && !a.quiet {
             eprintln!(
-                "{}: {} of {cells} cells and {} of {pairs} least-squares fits are missing:",
-                out.display(),
-                missing.cells,
-                missing.ls
+                "resuming from {} ({} parts): {} of {} cells and {} of {} least-squares fits already done",
+                r.folder.display(),
+                r.parts,
+                r.cells,
+                r.plan_cells,
+                r.ls,
+                r.plan_pairs,
             );
-            for line in missing.lines(&g.plan, 20) {
-                eprintln!("  {line}");
-            }
-            // Name the shards to rerun when the folders say how the job was split.
-            let counts: BTreeSet<usize> = g.folders.iter().filter_map(|(_, s, _)| s.map(|s| s.count)).collect();
-            if let [n] = counts.iter().copied().collect::<Vec<_>>()[..] {
-                let layout = shard::layout(&g.plan, n);
-                let owners: Vec<usize> = (0..n)
-                    .filter(|&s| layout[s].iter().any(|p| missing.pairs.iter().any(|(q, _, _)| q == p)))
-                    .collect();
-                eprintln!(
-                    "  they belong to shard {} of {n}: run `oesweep run JOB --shard I/{n}` for each",
-                    shard::ranges(&owners)
-                );
-            }
-            if !a.partial {
-                eprintln!(
-                    "nothing written; rerun the missing shards and merge again, or merge what there is with --partial"
-                );
-                return Ok(1);
-            }
         }
-        let selection = write_results(out, &g.job, &g.rows)?;
-        let failed = failed_cells(&g.rows);
-        let huber = g.rows.iter().filter(|r| r.method == Method::Huber).count();
-        let read: Vec<String> = g
-            .folders
-            .iter()
-            .filter(|(_, _, n)| *n > 0)
-            .map(|(d, _, n)| format!("{} ({n} parts)", d.file_name().unwrap_or_default().to_string_lossy()))
-            .collect();
-        println!("merged {}", read.join(", "));
-        println!(
-            "{}: {huber} of {cells} cells ({failed} failed) + {} of {pairs} least-squares fits",
-            g.job.name,
-            g.rows.len() - huber
-        );
-        print_picks(&selection);
-        println!("results in {}", out.display());
-        if missing.is_empty() {
-            if let Err(e) = checkpoint::remove(out) {
+        if r.duplicates > 0 {
+            eprintln!(
+                "warning: {}: {} duplicate rows ignored (the first of each cell is kept)",
+                r.folder.display(),
+                r.duplicates
+            );
+        }
+    };
+    let o = engine::run(&a.job, &opts, &on_resume)?;
+    if let Some((n, e)) = &o.unsaved {
+        eprintln!("warning: {n} finished rows could not be saved to the checkpoint: {e}");
+    }
+    let (cells, pairs, failed) = (o.cells, o.pairs, o.failed);
+    let rate = o.computed as f64 / o.seconds.max(1e-9);
+    match o.end {
+        RunEnd::Interrupted => {
+            let shard_arg = o.shard.map_or(String::new(), |s| format!(" --shard {s}"));
+            eprintln!(
+                "interrupted: {} of {cells} cells finished ({} in this run); they are saved in {}",
+                o.finished,
+                o.computed,
+                o.checkpoint.display()
+            );
+            eprintln!(
+                "to resume, run `oesweep run {}{shard_arg}` again (with --force to start over instead)",
+                a.job.display()
+            );
+        }
+        RunEnd::ShardSaved => {
+            let label = &o.label;
+            println!(
+                "{label}: {cells} cells ({failed} failed) + {pairs} least-squares fits, saved in {}",
+                o.checkpoint.display()
+            );
+            if o.resumed_rows > 0 {
+                println!("{} cells resumed from the checkpoint, {} computed in this run", o.resumed, o.computed);
+            }
+            println!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
+            let count = o.shard.map_or(1, |s| s.count);
+            println!("when all {count} shards are done: oesweep merge {}", o.out.display());
+        }
+        RunEnd::Merged { ref selection, .. } => {
+            println!("{}: {cells} cells ({failed} failed) + {pairs} least-squares fits", o.label);
+            if o.resumed_rows > 0 {
+                println!(
+                    "{} cells and {} least-squares fits resumed from the checkpoint, {} cells computed in this run",
+                    o.resumed,
+                    o.resumed_rows - o.resumed,
+                    o.computed
+                );
+            }
+            println!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
+            print_picks(selection);
+            println!("results in {}", o.out.display());
+            if let Some(e) = &o.cleanup {
                 eprintln!("warning: {e}");
             }
-        } else {
-            println!("partial merge: the checkpoint is kept; merge again once the missing cells are done");
         }
     }
-    if a.report {
-        let page = crate::report::write_report(out)?;
-        println!("report in {}", page.display());
+    let code = o.exit_code();
+    if let RunEnd::Merged { report, .. } = o.end {
+        print_report(report)?;
     }
-    let rows = export::parquet::read_cells(&out.join("cells.parquet"))?;
-    Ok(if failed_cells(&rows) > 0 { 1 } else { 0 })
+    Ok(code)
 }
 
-/// The sbatch templates built into the binary (the files of `jobs/slurm/`), so that
-/// `oesweep slurm` works from an installed binary without the source tree.
-const SWEEP_SBATCH: &str = include_str!("../jobs/slurm/sweep.sbatch");
-const MERGE_SBATCH: &str = include_str!("../jobs/slurm/merge.sbatch");
-
-/// `oesweep slurm`: validate the job, then submit the array job of N shards and a merge job
-/// that depends on it (`afterok`), and print both job ids. Slurm does the scheduling, retries
-/// and accounting; this only spares the user two sbatch lines and the dependency id.
-fn run_slurm(a: &SlurmArgs) -> Result<u8> {
-    if a.shards == 0 {
-        return Err(Error::Invalid("--shards must be at least 1".into()));
+/// `oesweep merge` ([`engine::merge`]).
+fn run_merge(a: &MergeArgs) -> Result<u8> {
+    let out = &a.folder;
+    let m = engine::merge(out, a.partial, a.report)?;
+    if m.duplicates > 0 {
+        eprintln!("note: {} cells were saved twice (identical rows); each is kept once", m.duplicates);
     }
-    if a.cpus_per_task == Some(0) {
-        return Err(Error::Invalid("--cpus-per-task must be at least 1".into()));
-    }
-    // Bad input is found here, not in N array tasks an hour later in the queue.
-    let p = prepare(&a.job)?;
-    let out = p.job.output().to_path_buf();
-    let job_file = a.job.canonicalize().map_err(|e| Error::input(&a.job, format!("cannot resolve: {e}")))?;
-    let logs = out.join("slurm");
-    let (sweep_script, merge_script) = match &a.sbatch {
-        Some(dir) => {
-            let (s, m) = (dir.join("sweep.sbatch"), dir.join("merge.sbatch"));
-            for f in [&s, &m] {
-                if !f.is_file() {
-                    return Err(Error::input(
-                        f,
-                        "not found (--sbatch names a folder with sweep.sbatch and merge.sbatch)",
-                    ));
-                }
-            }
-            (s, m)
+    if !m.missing.is_empty() {
+        let plan = m.plan.as_ref().expect("a merge that found missing cells has a plan");
+        eprintln!(
+            "{}: {} of {} cells and {} of {} least-squares fits are missing:",
+            out.display(),
+            m.missing.cells,
+            plan.n_cells(),
+            m.missing.ls,
+            plan.pairs.len()
+        );
+        for line in m.missing.lines(plan, 20) {
+            eprintln!("  {line}");
         }
-        None => (logs.join("sweep.sbatch"), logs.join("merge.sbatch")),
+        if let Some((n, owners)) = &m.owners {
+            eprintln!(
+                "  they belong to shard {} of {n}: run `oesweep run JOB --shard I/{n}` for each",
+                shard::ranges(owners)
+            );
+        }
+    }
+    match &m.end {
+        MergeEnd::AlreadyMerged => println!("{}: already merged (no checkpoint left), nothing to do", out.display()),
+        MergeEnd::Incomplete => {
+            eprintln!(
+                "nothing written; rerun the missing shards and merge again, or merge what there is with --partial"
+            );
+            return Ok(m.exit_code());
+        }
+        MergeEnd::Merged { selection } => {
+            let plan = m.plan.as_ref().expect("merged from a plan");
+            let read: Vec<String> = m
+                .folders
+                .iter()
+                .map(|(d, n)| format!("{} ({n} parts)", d.file_name().unwrap_or_default().to_string_lossy()))
+                .collect();
+            println!("merged {}", read.join(", "));
+            println!(
+                "{}: {} of {} cells ({} failed) + {} of {} least-squares fits",
+                m.name,
+                m.huber,
+                plan.n_cells(),
+                m.failed,
+                m.ls,
+                plan.pairs.len()
+            );
+            print_picks(selection);
+            println!("results in {}", out.display());
+            if m.missing.is_empty() {
+                if let Some(e) = &m.cleanup {
+                    eprintln!("warning: {e}");
+                }
+            } else {
+                println!("partial merge: the checkpoint is kept; merge again once the missing cells are done");
+            }
+        }
+    }
+    let code = m.exit_code();
+    print_report(m.report)?;
+    Ok(code)
+}
+
+/// `oesweep slurm` ([`crate::slurm::submit`]).
+fn run_slurm(a: &SlurmArgs) -> Result<u8> {
+    let req = crate::slurm::SlurmRequest {
+        job: a.job.clone(),
+        shards: a.shards,
+        sbatch: a.sbatch.clone(),
+        cpus_per_task: a.cpus_per_task,
+        sbatch_args: a.sbatch_arg.clone(),
+        report: a.report,
     };
-    let exe = std::env::current_exe().map_err(|e| Error::Invalid(format!("cannot locate the oesweep binary: {e}")))?;
-    let mut sweep_cmd: Vec<String> = vec![
-        "--parsable".into(),
-        format!("--array=0-{}", a.shards - 1),
-        format!("--job-name=oesweep-{}", p.job.job.name.replace(char::is_whitespace, "_")),
-        format!("--output={}", logs.join("sweep-%A_%a.out").display()),
-    ];
-    if let Some(c) = a.cpus_per_task {
-        sweep_cmd.push(format!("--cpus-per-task={c}"));
-    }
-    sweep_cmd.extend(a.sbatch_arg.iter().cloned());
-    sweep_cmd.extend([sweep_script.display().to_string(), job_file.display().to_string(), a.shards.to_string()]);
-    let mut merge_cmd: Vec<String> = vec![
-        "--parsable".into(),
-        format!("--job-name=oesweep-{}-merge", p.job.job.name.replace(char::is_whitespace, "_")),
-        format!("--output={}", logs.join("merge-%j.out").display()),
-    ];
-    merge_cmd.extend(a.sbatch_arg.iter().cloned());
-    merge_cmd.extend([merge_script.display().to_string(), out.display().to_string()]);
-    if a.report {
-        merge_cmd.push("--report".into());
-    }
     if a.dry_run {
-        println!("OESWEEP={} sbatch {}", exe.display(), sweep_cmd.join(" "));
-        println!("OESWEEP={} sbatch --dependency=afterok:<sweep job id> {}", exe.display(), merge_cmd.join(" "));
+        let (sweep, merge) = crate::slurm::commands(&req)?;
+        println!("OESWEEP={} sbatch {}", sweep.exe.display(), sweep.args.join(" "));
+        println!("OESWEEP={} sbatch --dependency=afterok:<sweep job id> {}", merge.exe.display(), merge.args.join(" "));
         return Ok(0);
     }
-    // Slurm opens the log files there, so the folder must exist before the tasks start.
-    std::fs::create_dir_all(&logs).map_err(|e| Error::output(&logs, format!("cannot create: {e}")))?;
-    if a.sbatch.is_none() {
-        for (path, text) in [(&sweep_script, SWEEP_SBATCH), (&merge_script, MERGE_SBATCH)] {
-            std::fs::write(path, text).map_err(|e| Error::output(path, format!("cannot write: {e}")))?;
-        }
-    }
-    let submit = |args: &[String]| -> Result<String> {
-        let o = std::process::Command::new("sbatch")
-            .args(args)
-            .env("OESWEEP", &exe)
-            .output()
-            .map_err(|e| Error::Invalid(format!("cannot run sbatch: {e} (is this a Slurm login node?)")))?;
-        let stdout = String::from_utf8_lossy(&o.stdout);
-        // --parsable prints `id` or `id;cluster`.
-        let id = stdout.trim().split(';').next().unwrap_or("").to_string();
-        if !o.status.success() || id.is_empty() || !id.bytes().all(|b| b.is_ascii_digit()) {
-            return Err(Error::Invalid(format!(
-                "sbatch {} failed: {}{}",
-                args.join(" "),
-                String::from_utf8_lossy(&o.stderr).trim(),
-                stdout.trim()
-            )));
-        }
-        Ok(id)
-    };
-    let sweep_id = submit(&sweep_cmd)?;
-    merge_cmd.insert(1, format!("--dependency=afterok:{sweep_id}"));
-    let merge_id = submit(&merge_cmd)?;
-    println!("sweep job {sweep_id} (array of {} shards)", a.shards);
-    println!("merge job {merge_id} (starts when every shard succeeded)");
-    println!("results in {}, Slurm logs in {}", out.display(), logs.display());
+    let s = crate::slurm::submit(&req)?;
+    println!("sweep job {} (array of {} shards)", s.sweep_id, a.shards);
+    println!("merge job {} (starts when every shard succeeded)", s.merge_id);
+    println!("results in {}, Slurm logs in {}", s.out.display(), s.logs.display());
     Ok(0)
 }

@@ -58,6 +58,17 @@ pub fn column_names(path: &Path) -> Result<Vec<String>> {
     }
 }
 
+/// The output column of a validation record: `given` when set; otherwise `y0` (the noise-free
+/// output `oesweep simulate` writes) when the file has that column, else `otherwise`. The one
+/// home of this default, for the job file, `oesweep fit` and the report.
+pub fn validation_column(path: &Path, given: Option<&str>, otherwise: &str) -> Result<String> {
+    Ok(match given {
+        Some(c) => c.to_string(),
+        None if column_names(path)?.iter().any(|c| c == "y0") => "y0".to_string(),
+        None => otherwise.to_string(),
+    })
+}
+
 /// Reads the input column `u_col` and the output column `y_col` of a CSV or Parquet file.
 ///
 /// All checks of [`read_columns`] apply; in addition the two columns must differ.

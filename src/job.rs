@@ -7,7 +7,7 @@
 
 use crate::data::{self, Record};
 use crate::error::{Error, Result};
-use crate::estimate::SolverOptions;
+use crate::estimate::{HuberHessian, SolverOptions};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -123,6 +123,57 @@ impl Default for SelectionSettings {
     }
 }
 
+/// The job's `solver` settings: the file's schema of [`SolverOptions`] (same fields, same
+/// defaults, unknown fields rejected). Validated in [`load`]; the numerics get the plain
+/// options from [`SolverSettings::options`].
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverSettings {
+    pub max_iterations: usize,
+    pub ftol: f64,
+    pub xtol: f64,
+    pub gtol: f64,
+    pub lambda0: f64,
+    pub warm_lambda0: f64,
+    pub huber_hessian: HuberHessian,
+    pub huber_tol: f64,
+    pub huber_extra_starts: usize,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        let o = SolverOptions::default();
+        SolverSettings {
+            max_iterations: o.max_iterations,
+            ftol: o.ftol,
+            xtol: o.xtol,
+            gtol: o.gtol,
+            lambda0: o.lambda0,
+            warm_lambda0: o.warm_lambda0,
+            huber_hessian: o.huber_hessian,
+            huber_tol: o.huber_tol,
+            huber_extra_starts: o.huber_extra_starts,
+        }
+    }
+}
+
+impl SolverSettings {
+    /// The solver's options (the settings are checked by [`load`]).
+    pub fn options(&self) -> SolverOptions {
+        SolverOptions {
+            max_iterations: self.max_iterations,
+            ftol: self.ftol,
+            xtol: self.xtol,
+            gtol: self.gtol,
+            lambda0: self.lambda0,
+            warm_lambda0: self.warm_lambda0,
+            huber_hessian: self.huber_hessian,
+            huber_tol: self.huber_tol,
+            huber_extra_starts: self.huber_extra_starts,
+        }
+    }
+}
+
 /// The job file as written (before validation).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -137,7 +188,7 @@ pub struct Job {
     #[serde(default)]
     pub band_hz: Option<[f64; 2]>,
     #[serde(default)]
-    pub solver: SolverOptions,
+    pub solver: SolverSettings,
     #[serde(default)]
     pub start: StartStrategy,
     #[serde(default)]
@@ -205,6 +256,28 @@ pub fn k_values(k: &KGrid) -> Vec<f64> {
     }
 }
 
+/// Rules that the job file and `oesweep fit` share. Each returns what is wrong; the caller
+/// names the field or flag.
+pub fn check_sampling_period(ts: f64) -> std::result::Result<(), String> {
+    if ts.is_finite() && ts > 0.0 { Ok(()) } else { Err(format!("must be a positive number of seconds, got {ts}")) }
+}
+
+/// A tuning constant k (see [`check_sampling_period`]).
+pub fn check_k(k: f64) -> std::result::Result<(), String> {
+    if k.is_finite() && k > 0.0 { Ok(()) } else { Err(format!("must be positive, got {k}")) }
+}
+
+/// A frequency band [lo, hi] in Hz at sampling period `ts` (see [`check_sampling_period`]).
+pub fn check_band(lo: f64, hi: f64, ts: f64) -> std::result::Result<(), String> {
+    let nyq = 0.5 / ts;
+    // The tolerance lets `hi` be the Nyquist frequency as written in decimal.
+    if lo >= 0.0 && hi > lo && hi <= nyq * (1.0 + 1e-12) {
+        Ok(())
+    } else {
+        Err(format!("need 0 <= lo < hi <= Nyquist frequency {nyq} Hz"))
+    }
+}
+
 /// `p` relative to `base`, with `a/../` folded lexically so messages show readable paths.
 fn resolve(base: &Path, p: &Path) -> PathBuf {
     use std::path::Component;
@@ -252,17 +325,14 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     job.data.path = resolve(&base, &job.data.path);
     job.data.y.get_or_insert_with(|| "y".into());
     match job.data.ts {
-        Some(ts) if ts.is_finite() && ts > 0.0 => {}
-        Some(ts) => return Err(bad("data.ts", format!("must be a positive number of seconds, got {ts}"))),
+        Some(ts) => check_sampling_period(ts).map_err(|m| bad("data.ts", m))?,
         None => return Err(bad("data.ts", "missing: the sampling period in seconds is required".into())),
     }
     if let Some(v) = job.validation.as_mut() {
         v.path = resolve(&base, &v.path);
         if let Some(ts) = v.ts {
             let ets = job.data.ts.unwrap();
-            if !(ts.is_finite() && ts > 0.0) {
-                return Err(bad("validation.ts", format!("must be a positive number of seconds, got {ts}")));
-            }
+            check_sampling_period(ts).map_err(|m| bad("validation.ts", m))?;
             if (ts - ets).abs() > 1e-9 * ets {
                 return Err(bad(
                     "validation.ts",
@@ -307,8 +377,8 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     if ks.is_empty() {
         return Err(bad("grid.k", "the list of k values is empty".into()));
     }
-    if let Some(k) = ks.iter().find(|k| !(k.is_finite() && **k > 0.0)) {
-        return Err(bad("grid.k", format!("k must be positive, got {k}")));
+    if let Some(m) = ks.iter().find_map(|&k| check_k(k).err()) {
+        return Err(bad("grid.k", format!("k {m}")));
     }
     // Duplicates anywhere in the list (not only neighbours) would give two cells with the
     // same (nB, nF, k) and two identical rows in the table.
@@ -320,10 +390,7 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     let nb: Vec<usize> = (b0..=b1).collect();
     let nf: Vec<usize> = (f0..=f1).collect();
     if let Some([lo, hi]) = job.band_hz {
-        let nyq = 0.5 / job.data.ts.unwrap();
-        if !(lo >= 0.0 && hi > lo && hi <= nyq * (1.0 + 1e-12)) {
-            return Err(bad("band_hz", format!("[{lo}, {hi}]: need 0 <= lo < hi <= Nyquist frequency {nyq} Hz")));
-        }
+        check_band(lo, hi, job.data.ts.unwrap()).map_err(|m| bad("band_hz", format!("[{lo}, {hi}]: {m}")))?;
     }
     let s = &job.solver;
     if s.max_iterations == 0 {
@@ -418,16 +485,7 @@ pub fn load_inputs(vj: &mut ValidJob) -> Result<Inputs> {
     data::check_for_model(&est, nb_max, nf_max, vj.job.delay)?;
     let val = match vj.job.validation.as_mut() {
         Some(v) => {
-            let col = match &v.y {
-                Some(c) => c.clone(),
-                None => {
-                    if data::column_names(&v.path)?.iter().any(|c| c == "y0") {
-                        "y0".to_string()
-                    } else {
-                        "y".to_string()
-                    }
-                }
-            };
+            let col = data::validation_column(&v.path, v.y.as_deref(), "y")?;
             let rec = data::read_record(&v.path, &v.u, &col)?;
             data::check_for_model(&rec, nb_max, nf_max, vj.job.delay)?;
             v.y = Some(col);

@@ -6,6 +6,7 @@
 pub mod checkpoint;
 pub mod cli;
 pub mod data;
+pub mod engine;
 pub mod error;
 pub mod estimate;
 pub mod export;
@@ -20,6 +21,7 @@ pub mod reduce;
 pub mod report;
 pub mod shard;
 pub mod simulate;
+pub mod slurm;
 pub mod spectral;
 pub mod sweep;
 pub mod table;

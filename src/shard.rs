@@ -176,15 +176,13 @@ pub fn ranges(v: &[usize]) -> String {
 
 /// What of `plan` is not in `rows` (rows of other plans are ignored).
 pub fn missing(plan: &Plan, rows: &[crate::table::CellRow]) -> Missing {
-    use crate::table::Method;
+    use crate::table::{RowKey, huber_key, ls_key};
     use std::collections::HashSet;
-    let have: HashSet<(bool, u32, u32, Option<u32>)> =
-        rows.iter().map(|r| (r.method == Method::Huber, r.nb, r.nf, r.k_index)).collect();
+    let have: HashSet<RowKey> = rows.iter().map(|r| r.key()).collect();
     let mut m = Missing::default();
     for (p, pair) in plan.pairs.iter().enumerate() {
-        let (nb, nf) = (pair.nb as u32, pair.nf as u32);
-        let ls = !have.contains(&(false, nb, nf, None));
-        let ks: Vec<usize> = (0..plan.ks.len()).filter(|&k| !have.contains(&(true, nb, nf, Some(k as u32)))).collect();
+        let ls = !have.contains(&ls_key(pair.nb, pair.nf));
+        let ks: Vec<usize> = (0..plan.ks.len()).filter(|&k| !have.contains(&huber_key(pair.nb, pair.nf, k))).collect();
         if ls || !ks.is_empty() {
             m.cells += ks.len();
             m.ls += ls as usize;

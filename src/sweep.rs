@@ -1,30 +1,33 @@
 //! Running a plan: rayon workers estimate the cells; the module that knows about the worker pool.
 //!
-//! Two stages. (1) The least-squares phase (initial guess, L2 fit, sigma) of every order pair,
-//! in parallel over pairs. (2) The Huber cells: with the `ls` start every cell is independent
-//! and runs in parallel over cells; with `neighbour`/`best` the k values of a pair form a
-//! continuation chain (largest k first) and run in parallel over pairs. Each task is
-//! sequential and deterministic, so the table does not depend on the thread count. One
-//! [`Workspace`] per worker (`map_init`). A panic inside a fit is caught and becomes a failed
-//! row; the sweep goes on.
+//! Two stages. (1) The least-squares phase (initial guesses, L2 fits, sigma) of every order
+//! pair, in parallel over pairs, largest first. (2) The Huber cells, as the plan's start
+//! strategy says: `chains` (the default) walks each pair's k values in increasing order
+//! ([`estimate::chains::walk_pair`]) and runs in parallel over pairs; `ls` makes every cell
+//! independent and runs in parallel over cells; `neighbour`/`best` walk each pair from the
+//! largest k down, in parallel over pairs. Each task is sequential and deterministic, so the
+//! table does not depend on the thread count. One [`Workspace`] per worker (`map_init`). A
+//! panic inside a fit is caught and becomes a failed row; the sweep goes on.
 //!
 //! Resuming ([`Control`]): rows finished by an earlier run of the same job are not computed
 //! again. A finished `ls` row *is* the pair's least-squares fit for the Huber phase: sigma and
 //! theta_LS = b ++ f are read from the row, and a pair fitted in this run goes through the same
 //! row-based path, so a resumed cell starts from the same bits as in an uninterrupted run. A
-//! continuation chain walks over its finished cells taking each one's (b, f) as the next start,
-//! exactly as the run that computed them did, and continues from the last one. Every row
-//! finished in this run is handed to [`Control::on_row`] (the checkpoint writer) at once, and
-//! the workers look at [`Control::stop`] before each cell, so an interrupt stops handing out
-//! work while running cells finish.
+//! `neighbour` chain walks over its finished cells taking each one's (b, f) as the next start,
+//! exactly as the run that computed them did, and continues from the last one; a `chains` pair
+//! with unfinished cells is walked again whole (its chains hold state the rows do not). Every
+//! row finished in this run is handed to [`Control::on_row`] (the checkpoint writer) at once,
+//! and the workers look at [`Control::stop`] before each cell, so an interrupt stops handing
+//! out work while running cells finish.
 
 use crate::data::Record;
-use crate::estimate::{self, Judge, Problem, SolverOptions, Workspace};
+use crate::estimate::chains::{CellOutcome, PairProblem, panic_message, walk_pair};
+use crate::estimate::{self, Judge, Problem, SolverOptions, StartKind, Workspace};
 use crate::job::StartStrategy;
 use crate::plan::{Cell, Plan};
 use crate::progress::Progress;
 use crate::spectral::SpectralEstimate;
-use crate::table::{CellRow, Method};
+use crate::table::{CellRow, Method, RowKey, huber_key, ls_key, sort_rows};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -43,29 +46,6 @@ impl Context<'_> {
     fn judge(&self) -> Judge<'_> {
         Judge { validation: self.val.map(|v| (&v.u[..], &v.y[..])), band: self.band }
     }
-}
-
-fn panic_message(e: Box<dyn std::any::Any + Send>) -> String {
-    if let Some(s) = e.downcast_ref::<&str>() {
-        s.to_string()
-    } else if let Some(s) = e.downcast_ref::<String>() {
-        s.clone()
-    } else {
-        "unknown panic".to_string()
-    }
-}
-
-/// Identity of a row in a table: (is a Huber row, nb, nf, k_index). A complete table has
-/// exactly one row per key of its plan.
-pub type RowKey = (bool, u32, u32, Option<u32>);
-
-pub fn row_key(r: &CellRow) -> RowKey {
-    (r.method == Method::Huber, r.nb, r.nf, r.k_index)
-}
-
-/// Sort rows as in `cells.parquet`: `ls` rows first, then by nb, nf, k_index.
-pub fn sort_rows(rows: &mut [CellRow]) {
-    rows.sort_by_key(row_key);
 }
 
 /// How a sweep continues an earlier run and reports to a checkpoint.
@@ -117,7 +97,7 @@ pub fn run(plan: &Plan, ctx: &Context, threads: usize, progress: &Progress, cont
     let t0 = Instant::now();
     let mut done: HashMap<RowKey, CellRow> = HashMap::with_capacity(control.done.len());
     for row in control.done {
-        done.entry(row_key(&row)).or_insert(row);
+        done.entry(row.key()).or_insert(row);
     }
     let resumed = done.values().filter(|r| r.method == Method::Huber).count();
     let new_rows = pool.install(|| run_in_pool(plan, ctx, progress, &done, control.on_row, control.stop));
@@ -167,13 +147,13 @@ fn run_in_pool(
     let stopped = || stop.load(Ordering::Relaxed);
     let huber_key = |cell: Cell| {
         let pair = plan.pairs[cell.pair];
-        (true, pair.nb as u32, pair.nf as u32, Some(cell.k_index as u32))
+        huber_key(pair.nb, pair.nf, cell.k_index)
     };
     progress.message("least-squares phase");
     // The least-squares phase of one pair: (the pair's fit, whether it was computed in this
     // run); None: stopped before it.
     let pair_ls = |pair: &crate::plan::Pair, p: usize, ws: &mut Workspace| -> Option<(PairLs, bool)> {
-        let resumed = done.get(&(false, pair.nb as u32, pair.nf as u32, None));
+        let resumed = done.get(&ls_key(pair.nb, pair.nf));
         let all_done = (0..plan.ks.len()).all(|k| done.contains_key(&huber_key(Cell { pair: p, k_index: k })));
         if let (Some(row), true) = (resumed, all_done) {
             return Some((PairLs::from_row(row.clone(), Vec::new()), false));
@@ -283,12 +263,9 @@ fn run_in_pool(
     rows
 }
 
-/// The Huber cells of pair `p` under the `chains` strategy, in increasing k (`order`). The
-/// chains carry state from cell to cell that the rows do not hold, so a pair with unfinished
-/// cells is walked again from its first cell: the walk is deterministic, so the cells an
-/// earlier run finished (`done[i]` for `order[i]`) come out bit for bit the same and are not
-/// reported again. Each cell is guarded on its own: a panic becomes that cell's failed row
-/// and the chains go on from their last points.
+/// The Huber cells of pair `p` under the `chains` strategy, in increasing k (`order`), those
+/// an earlier run finished (`done[i]` for `order[i]`) left out; empty when stopped mid-walk
+/// (see [`walk_pair`]).
 #[allow(clippy::too_many_arguments)]
 fn chain_cells(
     plan: &Plan,
@@ -305,79 +282,42 @@ fn chain_cells(
 ) -> Vec<CellRow> {
     let pair = plan.pairs[p];
     let delay = plan.delay;
-    let mut out = Vec::new();
     let failed = |ki: usize, reason: String| {
         CellRow::failed(Method::Huber, pair.nb, pair.nf, delay, Some((ki, plan.ks[ki])), reason)
     };
-    let Some((sigma, theta_ls)) = &ls.start else {
-        for (&ki, _) in order.iter().zip(done).filter(|(_, d)| !**d) {
+    let rows: Vec<CellRow> = match &ls.start {
+        None => {
             let reason = ls.row.reason.as_deref().unwrap_or("it failed");
-            let row = failed(ki, format!("no least-squares fit for this order pair: {reason}"));
-            on_row(&row);
-            progress.inc(1);
-            out.push(row);
+            order
+                .iter()
+                .zip(done)
+                .filter(|(_, d)| !**d)
+                .map(|(&ki, _)| failed(ki, format!("no least-squares fit for this order pair: {reason}")))
+                .collect()
         }
-        return out;
+        Some((sigma, theta_ls)) => {
+            let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay };
+            let problem = PairProblem { prob: &prob, sigma: *sigma, judge, opts: &ctx.solver };
+            let ks: Vec<(usize, f64)> = order.iter().map(|&ki| (ki, plan.ks[ki])).collect();
+            let Some(cells) = walk_pair(&problem, theta_ls, &ls.alternatives, &ks, done, stopped, ws) else {
+                return Vec::new();
+            };
+            cells
+                .into_iter()
+                .map(|(ki, cell)| match cell {
+                    CellOutcome::Fit { fit, start, seconds } => {
+                        CellRow::from_huber_of_pair(&fit, (pair.nb, pair.nf, delay), *sigma, ki, start, seconds)
+                    }
+                    CellOutcome::Panicked(reason) => failed(ki, reason),
+                })
+                .collect()
+        }
     };
-    let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay };
-    let mut chains = estimate::Chains::new(theta_ls, &ls.alternatives);
-    // The up walk, then the backward pass over the whole pair (`ChainWalk`), which may still
-    // change any cell: a pair's rows are final, and handed out, only when both are done. A
-    // stop in between drops the pair's new rows (at most one pair per worker is redone).
-    let mut walk = estimate::ChainWalk::default();
-    let mut seconds = Vec::with_capacity(order.len());
-    let mut panics: Vec<Option<String>> = Vec::with_capacity(order.len());
-    for (&ki, &was_done) in order.iter().zip(done) {
-        if !was_done && stopped() {
-            return out;
-        }
-        let k = plan.ks[ki];
-        let t = Instant::now();
-        let run = catch_unwind(AssertUnwindSafe(|| {
-            crate::failpoint::before_cell(pair.nb, pair.nf, ki);
-            chains.step(&prob, *sigma, k, judge, &ctx.solver, ws)
-        }));
-        seconds.push(t.elapsed().as_secs_f64());
-        match run {
-            Ok(cell) => {
-                walk.cells.push(Some(cell));
-                panics.push(None);
-            }
-            Err(e) => {
-                walk.cells.push(None);
-                panics.push(Some(format!("Huber fit panicked: {}", panic_message(e))));
-            }
-        }
-    }
-    let ks: Vec<f64> = order.iter().map(|&ki| plan.ks[ki]).collect();
-    // The pass replaces a cell only by a complete, lower fit, so after a panic in it every cell
-    // is still a valid fit (of the up walk or of the pass).
-    let extra = catch_unwind(AssertUnwindSafe(|| walk.walk_back(&prob, *sigma, &ks, judge, &ctx.solver, ws)))
-        .unwrap_or_else(|_| vec![0.0; order.len()]);
-    for (i, (&ki, &was_done)) in order.iter().zip(done).enumerate() {
-        if was_done {
-            continue;
-        }
-        let row = match (&walk.cells[i], &panics[i]) {
-            (Some((fit, which)), _) => CellRow::from_huber_of_pair(
-                fit,
-                (pair.nb, pair.nf, delay),
-                *sigma,
-                ki,
-                match *which {
-                    0 => "chain_ls",
-                    estimate::ChainWalk::BACK => "chain_back",
-                    _ => "chain_alt",
-                },
-                seconds[i] + extra[i],
-            ),
-            (None, reason) => failed(ki, reason.clone().unwrap_or_else(|| "Huber fit panicked".into())),
-        };
-        on_row(&row);
+    for row in &rows {
+        on_row(row);
         progress.inc(1);
-        out.push(row);
     }
-    out
+    rows
 }
 
 /// One Huber cell of the pair whose least-squares phase is `ls`, started from theta_LS and/or
@@ -409,21 +349,22 @@ fn huber_cell(
         let from_ls = |ws: &mut Workspace| {
             let (fit, which) =
                 estimate::fit_huber_starts(&prob, *sigma, k, theta_ls, &ls.alternatives, judge, &ctx.solver, ws);
-            (fit, if which == 0 { "ls" } else { "ls_alt" })
+            (fit, StartKind::Ls { start: which })
         };
         // The neighbour's solution is a warm start (the minimum at the next k).
-        let warm = SolverOptions { lambda0: ctx.solver.warm_lambda0, ..ctx.solver.clone() };
+        let warm = ctx.solver.huber_warm();
         let fit_from =
             |start: &[f64], ws: &mut Workspace| estimate::fit_huber(&prob, *sigma, k, start, judge, &warm, ws);
-        match (plan.start, neighbour) {
-            (StartStrategy::Ls | StartStrategy::Chains, _) | (_, None) => from_ls(ws),
-            (StartStrategy::Neighbour, Some(nb)) => (fit_from(nb, ws), "neighbour"),
-            (StartStrategy::Best, Some(nb)) => {
+        // `neighbour` is None for `ls` and for the first cell of a `neighbour`/`best` chain.
+        match neighbour {
+            None => from_ls(ws),
+            Some(nb) if plan.start == StartStrategy::Best => {
                 let a = from_ls(ws);
                 let b = fit_from(nb, ws);
                 // Ties keep the least-squares start.
-                if b.criterion < a.0.criterion { (b, "neighbour") } else { a }
+                if b.criterion < a.0.criterion { (b, StartKind::Neighbour) } else { a }
             }
+            Some(nb) => (fit_from(nb, ws), StartKind::Neighbour),
         }
     }));
     match run {

@@ -4,7 +4,7 @@
 //! report, and printed as JSON. Outcome fields are `Option` so a failed cell is a row with
 //! `status = "failed"`, a `reason`, and nulls instead of numbers.
 
-use crate::estimate::{HuberFit, LsFit};
+use crate::estimate::{HuberFit, LsFit, StartKind};
 use serde::{Deserialize, Serialize};
 
 /// Which fit a row holds.
@@ -57,13 +57,31 @@ pub struct CellRow {
     pub reason: Option<String>,
     pub max_pole_radius: Option<f64>,
     pub reflections: Option<u32>,
-    /// Where the fit started: "ls" (the pair's least-squares fit), "init" (ARX/IV, ls rows),
-    /// or "neighbour" (the solution at the neighbouring k).
+    /// Where the fit started ([`StartKind::as_str`]; empty for a failed cell).
     pub start: String,
     /// Wall time of this fit in seconds (not reproducible; excluded from comparisons).
     pub seconds: f64,
     pub b: Vec<f64>,
     pub f: Vec<f64>,
+}
+
+/// Identity of a row in a table: (is a Huber row, nb, nf, k_index). A complete table has
+/// exactly one row per key of its plan.
+pub type RowKey = (bool, u32, u32, Option<u32>);
+
+/// Key of the Huber row of cell (nb, nf, k_index).
+pub fn huber_key(nb: usize, nf: usize, k_index: usize) -> RowKey {
+    (true, nb as u32, nf as u32, Some(k_index as u32))
+}
+
+/// Key of the least-squares row of order pair (nb, nf).
+pub fn ls_key(nb: usize, nf: usize) -> RowKey {
+    (false, nb as u32, nf as u32, None)
+}
+
+/// Sort rows as in `cells.parquet`: `ls` rows first, then by nb, nf, k_index.
+pub fn sort_rows(rows: &mut [CellRow]) {
+    rows.sort_by_key(CellRow::key);
 }
 
 pub const STATUS_OK: &str = "ok";
@@ -94,7 +112,7 @@ impl CellRow {
             reason: (!ok).then(|| format!("least-squares fit ended {}", ls.termination)),
             max_pole_radius: Some(ls.assessment.max_pole_radius),
             reflections: Some(ls.reflections as u32),
-            start: "init".to_string(),
+            start: StartKind::Init.as_str().to_string(),
             seconds,
             b: ls.b.clone(),
             f: ls.f.clone(),
@@ -102,7 +120,7 @@ impl CellRow {
     }
 
     /// Row of a Huber fit of the order pair whose least-squares fit is `ls`.
-    pub fn from_huber(h: &HuberFit, ls: &LsFit, k_index: usize, start: &str, seconds: f64) -> Self {
+    pub fn from_huber(h: &HuberFit, ls: &LsFit, k_index: usize, start: StartKind, seconds: f64) -> Self {
         Self::from_huber_of_pair(h, (ls.nb, ls.nf, ls.delay), ls.sigma, k_index, start, seconds)
     }
 
@@ -113,10 +131,10 @@ impl CellRow {
         (nb, nf, delay): (usize, usize, usize),
         sigma: f64,
         k_index: usize,
-        start: &str,
+        start: StartKind,
         seconds: f64,
     ) -> Self {
-        let ok = h.criterion.is_finite() && h.termination != crate::estimate::Termination::NonFinite;
+        let ok = h.termination.usable(h.criterion);
         CellRow {
             method: Method::Huber,
             nb: nb as u32,
@@ -138,7 +156,7 @@ impl CellRow {
             reason: (!ok).then(|| format!("Huber fit ended {}", h.termination)),
             max_pole_radius: Some(h.assessment.max_pole_radius),
             reflections: Some(h.reflections as u32),
-            start: start.to_string(),
+            start: start.as_str().to_string(),
             seconds,
             b: h.b.clone(),
             f: h.f.clone(),
@@ -177,5 +195,10 @@ impl CellRow {
 
     pub fn ok(&self) -> bool {
         self.status == STATUS_OK
+    }
+
+    /// This row's [`RowKey`].
+    pub fn key(&self) -> RowKey {
+        (self.method == Method::Huber, self.nb, self.nf, self.k_index)
     }
 }

@@ -141,7 +141,7 @@ fn bad_inputs_give_exit_2_and_a_clear_message() {
             "constant",
         ),
         (good_p.clone(), vec!["--band", "0,100"], "--band needs --ts"),
-        (good_p.clone(), vec!["--k=-1"], "--k must be a positive"),
+        (good_p.clone(), vec!["--k=-1"], "--k must be positive"),
     ];
     for (path, extra, needle) in cases {
         let mut args = vec!["fit", "--data", path.to_str().unwrap(), "--nb", "2", "--nf", "2"];

@@ -206,7 +206,8 @@ fn chains_recover_the_truth_merge_duplicates_and_keep_the_best() {
     let scale = (y.iter().map(|v| v * v).sum::<f64>() / y.len() as f64).sqrt();
     assert_eq!(chains.live(), 3);
     for k in [0.05, 0.1, 0.5, 2.0] {
-        let (h, which) = chains.step(&prob, scale, k, &judge, &opts, &mut ws);
+        let (h, which) =
+            chains.step(&estimate::PairProblem { prob: &prob, sigma: scale, judge: &judge, opts: &opts }, k, &mut ws);
         assert!(h.termination.converged(), "{:?}", h.termination);
         assert!(which < 3);
         assert_params(&[&h.b[..], &h.f[..]].concat(), &truth, 1e-6, &format!("chains k={k}"));
@@ -224,8 +225,10 @@ fn chains_recover_the_truth_merge_duplicates_and_keep_the_best() {
     let mut both = estimate::Chains::new(&ls.theta(), &[start]);
     let mut alone = estimate::Chains::new(&ls.theta(), &[]);
     for k in [0.05, 0.2, 1.0] {
-        let (h2, _) = both.step(&prob, ls.sigma, k, &judge, &opts, &mut ws);
-        let (h1, _) = alone.step(&prob, ls.sigma, k, &judge, &opts, &mut ws);
+        let (h2, _) =
+            both.step(&estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts }, k, &mut ws);
+        let (h1, _) =
+            alone.step(&estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts }, k, &mut ws);
         assert!(h2.criterion <= h1.criterion * (1.0 + 1e-12), "k={k}: {} > {}", h2.criterion, h1.criterion);
     }
 }
@@ -254,8 +257,16 @@ fn warm_damping_converges_to_a_minimum_in_fewer_iterations() {
     let mut cold_chain = estimate::Chains::new(&ls.theta(), &[]);
     let (mut warm_its, mut cold_its) = (0, 0);
     for (i, &k) in ks.iter().enumerate() {
-        let (w, _) = warm_chain.step(&prob, ls.sigma, k, &judge, &opts, &mut ws);
-        let (c, _) = cold_chain.step(&prob, ls.sigma, k, &judge, &cold, &mut ws);
+        let (w, _) = warm_chain.step(
+            &estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts },
+            k,
+            &mut ws,
+        );
+        let (c, _) = cold_chain.step(
+            &estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &cold },
+            k,
+            &mut ws,
+        );
         assert!(w.termination.converged(), "{:?}", w.termination);
         let polished = estimate::fit_huber(&prob, ls.sigma, k, &[&w.b[..], &w.f[..]].concat(), &judge, &tight, &mut ws);
         assert!(
@@ -302,10 +313,12 @@ fn a_losing_chain_out_of_iterations_runs_on_the_creeping_budget() {
     let mut chains = estimate::Chains::new(&ls.theta(), &[far]);
     ws.record_trace = true;
     // At k = 3 W is nearly the least-squares criterion: theta_LS converges at once.
-    let (h, which) = chains.step(&prob, ls.sigma, 3.0, &judge, &short, &mut ws);
+    let (h, which) =
+        chains.step(&estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &short }, 3.0, &mut ws);
     assert!(h.termination.converged() && which == 0, "{:?} {which}", h.termination);
     assert_eq!((chains.live(), chains.creeping()), (2, 1), "the far chain lost without converging");
-    let (_, which) = chains.step(&prob, ls.sigma, 3.1, &judge, &short, &mut ws);
+    let (_, which) =
+        chains.step(&estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &short }, 3.1, &mut ws);
     assert_eq!(which, 0);
     // The far chain ran last: its accepted steps are in the trace.
     assert!(ws.trace.len() - 1 <= estimate::Chains::CREEP_ITERATIONS, "{} steps", ws.trace.len() - 1);
@@ -314,7 +327,11 @@ fn a_losing_chain_out_of_iterations_runs_on_the_creeping_budget() {
     while chains.creeping() > 0 {
         steps += 1;
         assert!(steps <= 40, "still creeping after 40 cells");
-        chains.step(&prob, ls.sigma, 3.1 + 0.01 * steps as f64, &judge, &opts, &mut ws);
+        chains.step(
+            &estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts },
+            3.1 + 0.01 * steps as f64,
+            &mut ws,
+        );
     }
 }
 
@@ -334,11 +351,13 @@ fn the_backward_walk_finds_the_branch_below_a_fold_and_is_never_worse() {
     let ks: Vec<f64> = (0..16).map(|i| 0.05 * (2.0f64 / 0.05).powf(i as f64 / 39.0)).collect();
     let mut chains = estimate::Chains::new(&ls.theta(), &ls.alternatives);
     let mut walk = estimate::ChainWalk::default();
+    let pair = estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts };
     for &k in &ks {
-        walk.cells.push(Some(chains.step(&prob, ls.sigma, k, &judge, &opts, &mut ws)));
+        let (fit, which) = chains.step(&pair, k, &mut ws);
+        walk.cells.push(Some((fit, estimate::StartKind::Chain { start: which })));
     }
     let up: Vec<f64> = walk.cells.iter().map(|c| c.as_ref().unwrap().0.criterion).collect();
-    let seconds = walk.walk_back(&prob, ls.sigma, &ks, &judge, &opts, &mut ws);
+    let seconds = walk.walk_back(&pair, &ks, &mut ws);
     assert_eq!(seconds.len(), ks.len());
     let mut best_gain: f64 = 0.0;
     for (i, cell) in walk.cells.iter().enumerate() {
@@ -346,7 +365,7 @@ fn the_backward_walk_finds_the_branch_below_a_fold_and_is_never_worse() {
         assert!(fit.criterion <= up[i], "k = {}: {} after the walk, {} before", ks[i], fit.criterion, up[i]);
         let gain = (up[i] - fit.criterion) / up[i];
         if gain > 0.0 {
-            assert_eq!(*which, estimate::ChainWalk::BACK);
+            assert_eq!(*which, estimate::StartKind::ChainBack);
             // A replaced cell is a full fit: its W is that of its own parameters.
             let yhat = oe::simulate_vec(&fit.b, &fit.f, 1, &rec.u);
             let w = Loss::Huber { gamma: fit.gamma }.criterion(&rec.y, &yhat);

@@ -51,7 +51,7 @@ fn setup(dir: &Path, start: &str) -> PathBuf {
 /// The table without the wall-clock column, checked to hold one row per key.
 fn table(path: &Path) -> Vec<CellRow> {
     let mut rows = read_cells(path).unwrap();
-    let keys: HashSet<_> = rows.iter().map(oesweep::sweep::row_key).collect();
+    let keys: HashSet<_> = rows.iter().map(oesweep::table::CellRow::key).collect();
     assert_eq!(keys.len(), rows.len(), "{}: a cell has two rows", path.display());
     for r in &mut rows {
         r.seconds = 0.0;

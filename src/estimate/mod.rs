@@ -8,11 +8,13 @@
 //! Steps 1-2 depend only on (nB, nF, delay), so a sweep runs them once per order pair and
 //! shares the [`LsFit`] across all k.
 
+pub mod chains;
 pub mod huber;
 pub mod init;
 pub mod normal;
 pub mod solver;
 
+pub use chains::{ChainWalk, Chains, PairProblem};
 pub use huber::Loss;
 pub use solver::{HuberHessian, Problem, Solution, SolverOptions, Termination, Workspace};
 
@@ -34,6 +36,35 @@ pub fn fit_percent(y: &[f64], yhat: &[f64]) -> f64 {
     let num: f64 = y.iter().zip(yhat).map(|(a, b)| (a - b) * (a - b)).sum();
     let den: f64 = y.iter().map(|a| (a - mean) * (a - mean)).sum();
     100.0 * (1.0 - (num / den).sqrt())
+}
+
+/// Where a fit started: the table's `start` column ([`StartKind::as_str`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StartKind {
+    /// A least-squares fit from the ARX/IV initial guesses.
+    Init,
+    /// A Huber fit from the pair's least-squares starts: 0 = theta_LS, else an extra start.
+    Ls { start: usize },
+    /// A Huber fit from the solution at the neighbouring k.
+    Neighbour,
+    /// A cell of the `chains` walk, won by the chain begun at start `start` (0 = theta_LS).
+    Chain { start: usize },
+    /// A cell improved by the backward pass of the `chains` walk ([`ChainWalk`]).
+    ChainBack,
+}
+
+impl StartKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StartKind::Init => "init",
+            StartKind::Ls { start: 0 } => "ls",
+            StartKind::Ls { .. } => "ls_alt",
+            StartKind::Neighbour => "neighbour",
+            StartKind::Chain { start: 0 } => "chain_ls",
+            StartKind::Chain { .. } => "chain_alt",
+            StartKind::ChainBack => "chain_back",
+        }
+    }
 }
 
 /// Quantities every fitted model reports.
@@ -90,7 +121,7 @@ impl LsFit {
     }
     /// True when the numbers are usable (finite criterion and parameters).
     pub fn ok(&self) -> bool {
-        self.termination != Termination::NonFinite && self.sigma.is_finite()
+        self.termination.usable(self.sigma)
     }
 }
 
@@ -152,7 +183,7 @@ pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Work
         .enumerate()
         .filter(|&(i, sol)| {
             let distinct = (sol.criterion - sols[best].criterion).abs() > 1e-9 * sols[best].criterion.abs();
-            i != best && sol.termination != Termination::NonFinite && sol.criterion.is_finite() && distinct
+            i != best && sol.usable() && distinct
         })
         .map(|(_, sol)| sol)
         .collect();
@@ -214,203 +245,12 @@ pub fn fit_huber_starts(
     ws: &mut Workspace,
 ) -> (HuberFit, usize) {
     // One step of fresh chains is exactly this: every start once, the lowest W wins.
-    Chains::new(theta_ls, alternatives).step(prob, sigma, k, judge, opts, ws)
-}
-
-/// Continuation chains along k for one order pair (start strategy `chains`, METHOD.md 5).
-///
-/// One chain per start (theta_LS, then the pair's alternative starts). The cells are fitted in
-/// increasing k: each chain starts the next cell from its own solution at the previous k. Small
-/// k comes first because there the Huber minima are farthest from theta_LS and the starts most
-/// often end in different basins; moving up in k then tracks each basin (measured against the
-/// scipy peer: no worse in 96 % of cells, against 91 % going down from theta_LS). Chains
-/// that reach the same criterion (relative [`Chains::MERGE`]) have found the same minimum and
-/// merge into the earlier one, so most pairs soon run a single chain. A losing chain that ran
-/// out of iterations (creeping along the stability boundary) continues on a small iteration
-/// budget until it converges again ([`Chains::CREEP_ITERATIONS`]).
-#[derive(Clone, Debug)]
-pub struct Chains {
-    /// Current point of each chain (None: merged into an earlier chain).
-    points: Vec<Option<Vec<f64>>>,
-    /// The points are minima at the previous k (after the first step), not cold starts.
-    warm: bool,
-    /// Per chain: its last fit lost and ran out of iterations (see [`Chains::step`]).
-    creeping: Vec<bool>,
-}
-
-impl Chains {
-    /// Relative criterion difference below which two chains count as one minimum.
-    pub const MERGE: f64 = 1e-6;
-    /// Iteration budget of a chain creeping along the stability boundary.
-    pub const CREEP_ITERATIONS: usize = 10;
-
-    /// Chains from `theta_ls` (chain 0) and each of `alternatives`.
-    pub fn new(theta_ls: &[f64], alternatives: &[Vec<f64>]) -> Self {
-        let points: Vec<_> = std::iter::once(theta_ls.to_vec()).chain(alternatives.iter().cloned()).map(Some).collect();
-        let creeping = vec![false; points.len()];
-        Chains { points, warm: false, creeping }
-    }
-
-    /// Chains still running.
-    pub fn live(&self) -> usize {
-        self.points.iter().flatten().count()
-    }
-
-    /// Chains running on the creeping budget [`Chains::CREEP_ITERATIONS`].
-    pub fn creeping(&self) -> usize {
-        self.points.iter().zip(&self.creeping).filter(|(p, c)| p.is_some() && **c).count()
-    }
-
-    /// The cell at tuning constant `k` (larger than at the previous call): one fit per live
-    /// chain, the lowest criterion wins (ties: the earlier chain). Returns the fit and the
-    /// index of the chain's start (0 = theta_LS).
-    #[allow(clippy::too_many_arguments)]
-    pub fn step(
-        &mut self,
-        prob: &Problem,
-        sigma: f64,
-        k: f64,
-        judge: &Judge,
-        opts: &SolverOptions,
-        ws: &mut Workspace,
-    ) -> (HuberFit, usize) {
-        let loss = Loss::Huber { gamma: k * sigma };
-        let opts = &if self.warm { opts.huber_warm() } else { opts.huber() };
-        self.warm = true;
-        let mut sols: Vec<Option<Solution>> = Vec::with_capacity(self.points.len());
-        let budget = SolverOptions { max_iterations: Self::CREEP_ITERATIONS.min(opts.max_iterations), ..opts.clone() };
-        for (point, &creeping) in self.points.iter().zip(&self.creeping) {
-            let opts = if creeping { &budget } else { opts };
-            sols.push(point.as_ref().map(|p| solver::minimise(prob, loss, p, opts, ws)));
-        }
-        let last = sols.iter().rposition(Option::is_some);
-        // Criteria this small are rounding noise of an exact fit, equal whatever their ratio.
-        let floor = 1e-20 * prob.y.iter().map(|v| v * v).sum::<f64>() / prob.n() as f64;
-        let mut best: Option<usize> = None;
-        for (i, sol) in sols.iter().enumerate() {
-            let Some(sol) = sol else { continue };
-            let usable = sol.termination != Termination::NonFinite && sol.criterion.is_finite();
-            if !usable {
-                // A chain that broke down keeps its last point (the next k may recover).
-                continue;
-            }
-            let merged = sols[..i].iter().enumerate().any(|(j, other)| {
-                self.points[j].is_some()
-                    && other.as_ref().is_some_and(|o| {
-                        o.criterion.is_finite()
-                            && (o.criterion - sol.criterion).abs() <= Self::MERGE * sol.criterion.abs() + floor
-                    })
-            });
-            self.points[i] = if merged { None } else { Some(sol.theta.clone()) };
-            if best.is_none_or(|b| sol.criterion < sols[b].as_ref().expect("live").criterion) {
-                best = Some(i);
-            }
-        }
-        // No usable chain: report chain 0's (non-finite) attempt as the cell's failure.
-        let which = best.unwrap_or(0);
-        // A losing chain whose fit ran out of iterations is creeping along the stability
-        // boundary: nearly every step leaves the unit circle and is reflected back for a
-        // decrease of ~1e-5, the minimum of its basin lying outside. Walked on, it repeats
-        // that at every k (on the paper grid such steps never won a cell, yet took a quarter
-        // of the Huber iterations), so it runs on a budget of CREEP_ITERATIONS per cell until
-        // a fit of it converges again: enough for a warm start whose basin has turned
-        // interior (2-5 iterations), and the chain stays in the race.
-        for (i, sol) in sols.iter().enumerate() {
-            self.creeping[i] = best.is_some()
-                && i != which
-                && sol.as_ref().is_some_and(|s| s.termination == Termination::MaxIterations);
-        }
-        let sol = sols[which].as_ref().or(sols.iter().flatten().next()).expect("at least one chain");
-        let fit = huber_from_solution(prob, sigma, k, sol, judge, ws, Some(which) != last);
-        (fit, which)
-    }
-}
-
-/// The cells of one order pair along its k grid (increasing k), as [`Chains`] left them, and
-/// the backward pass over them ([`ChainWalk::walk_back`]).
-///
-/// Walking up in k, a chain follows its minimum until that minimum ceases to exist (a fold:
-/// the basin merges into another one as gamma grows); the chain then falls into the other
-/// basin, which may have been the lower one at the smaller k too, unseen because every start
-/// was elsewhere. On the paper grid this happened in 62 of 3840 cells (up to 12 % lower W,
-/// e.g. OE(8,4) at k = 0.0875: 1.795 against the 1.586 that the scipy peer found, and that is
-/// the continuation of the k = 0.1 minimum downwards). So where the up walk jumped (the
-/// winning chain changed, or its warm fit needed [`ChainWalk::JUMP_ITERATIONS`] or more) the
-/// pass walks down from that cell, warm start by warm start, as long as each fit lowers the
-/// criterion of the cell below; a cell keeps the better of the two. Never worse than the up
-/// walk; on the paper grid it added ~9 % to the Huber iterations and 2-3 % to the wall time.
-#[derive(Clone, Debug, Default)]
-pub struct ChainWalk {
-    /// Per k: the cell's fit and where it came from (the winning chain's start index, or
-    /// [`ChainWalk::BACK`]); None for a cell that failed outright (a panic), which a walk
-    /// does not cross.
-    pub cells: Vec<Option<(HuberFit, usize)>>,
-}
-
-impl ChainWalk {
-    /// Start index of a cell improved by the backward pass.
-    pub const BACK: usize = usize::MAX;
-    /// A warm fit this long has likely left its basin (warm fits converge in 2-5 iterations).
-    pub const JUMP_ITERATIONS: usize = 15;
-
-    /// The backward pass; `ks[i]` is the tuning constant of `cells[i]`. Returns the time spent
-    /// per cell (seconds), to be added to its own. Deterministic, like the up walk.
-    #[allow(clippy::too_many_arguments)]
-    pub fn walk_back(
-        &mut self,
-        prob: &Problem,
-        sigma: f64,
-        ks: &[f64],
-        judge: &Judge,
-        opts: &SolverOptions,
-        ws: &mut Workspace,
-    ) -> Vec<f64> {
-        let n = self.cells.len();
-        assert_eq!(ks.len(), n);
-        let mut seconds = vec![0.0; n];
-        // The triggers are those of the up walk, fixed before any cell changes.
-        let jumped: Vec<bool> = (0..n)
-            .map(|i| {
-                i > 0
-                    && match (&self.cells[i], &self.cells[i - 1]) {
-                        (Some((fit, which)), Some((_, below))) => {
-                            which != below || fit.iterations >= Self::JUMP_ITERATIONS
-                        }
-                        _ => false,
-                    }
-            })
-            .collect();
-        let opts = opts.huber_warm();
-        for i in (1..n).rev().filter(|&i| jumped[i]) {
-            let mut j = i;
-            while j > 0 {
-                let (Some((from, _)), Some((below, _))) = (&self.cells[j], &self.cells[j - 1]) else { break };
-                let start = [&from.b[..], &from.f[..]].concat();
-                let incumbent = below.criterion;
-                let t = std::time::Instant::now();
-                let loss = Loss::Huber { gamma: ks[j - 1] * sigma };
-                let sol = solver::minimise(prob, loss, &start, &opts, ws);
-                let lower = sol.termination != Termination::NonFinite
-                    && sol.criterion.is_finite()
-                    && (!incumbent.is_finite() || sol.criterion < incumbent * (1.0 - Chains::MERGE));
-                if lower {
-                    let fit = huber_from_solution(prob, sigma, ks[j - 1], &sol, judge, ws, false);
-                    self.cells[j - 1] = Some((fit, Self::BACK));
-                }
-                seconds[j - 1] += t.elapsed().as_secs_f64();
-                if !lower {
-                    break;
-                }
-                j -= 1;
-            }
-        }
-        seconds
-    }
+    Chains::new(theta_ls, alternatives).step(&PairProblem { prob, sigma, judge, opts }, k, ws)
 }
 
 /// A [`HuberFit`] from a finished minimisation. `resimulate`: the workspace does not hold this
 /// solution's simulation (another fit ran after it).
-fn huber_from_solution(
+pub(crate) fn huber_from_solution(
     prob: &Problem,
     sigma: f64,
     k: f64,
@@ -441,9 +281,7 @@ fn huber_from_solution(
 
 /// True when `a` is a usable solution with a lower criterion than `b`.
 fn better(a: &Solution, b: &Solution) -> bool {
-    a.termination != Termination::NonFinite
-        && a.criterion.is_finite()
-        && (b.termination == Termination::NonFinite || !b.criterion.is_finite() || a.criterion < b.criterion)
+    a.usable() && (!b.usable() || a.criterion < b.criterion)
 }
 
 fn ls_from_solution(prob: &Problem, sol: Solution, judge: &Judge, _opts: &SolverOptions, ws: &mut Workspace) -> LsFit {

@@ -26,7 +26,7 @@ use super::normal::{Layout, NormalEquations};
 use crate::oe;
 
 /// How the Huber Hessian weights the L1 rows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum HuberHessian {
     /// Exact Gauss-Newton Hessian of W: L1 rows get weight 0 (METHOD.md 3).
@@ -35,9 +35,9 @@ pub enum HuberHessian {
     Irls,
 }
 
-/// Solver settings. Defaults are tight enough to match a scipy trust-region fit to ~1e-8.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields, default)]
+/// Solver settings (the job file's schema of them is [`crate::job::SolverSettings`]). Defaults
+/// are tight enough to match a scipy trust-region fit to ~1e-8.
+#[derive(Clone, Debug, PartialEq)]
 pub struct SolverOptions {
     /// Iteration cap (accepted + rejected steps count as one iteration each outer pass).
     pub max_iterations: usize,
@@ -111,11 +111,18 @@ pub enum Termination {
     MaxIterations,
     /// No decreasing step could be found although no tolerance was met (damping exhausted).
     Stalled,
-    /// The criterion or the normal equations became non-finite at the start point.
+    /// The criterion or the normal equations became non-finite (at the start point, or at an
+    /// accepted point whose normal equations overflowed).
     NonFinite,
 }
 
 impl Termination {
+    /// The one rule for a usable fit: it did not break down and `value` (its criterion, or a
+    /// quantity computed from its residuals such as sigma) is finite.
+    pub fn usable(self, value: f64) -> bool {
+        self != Termination::NonFinite && value.is_finite()
+    }
+
     pub fn converged(self) -> bool {
         matches!(
             self,
@@ -179,6 +186,13 @@ pub struct Solution {
     pub reflections: usize,
     /// Damping at the end.
     pub lambda: f64,
+}
+
+impl Solution {
+    /// See [`Termination::usable`].
+    pub fn usable(&self) -> bool {
+        self.termination.usable(self.criterion)
+    }
 }
 
 /// Per-worker buffers, reused across fits of any size.

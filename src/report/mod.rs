@@ -178,12 +178,8 @@ impl Sweep {
         let val = match &job.validation {
             Some(v) => {
                 gone(v, "validation")?;
-                // The sweep's default (y0 when the file has it) in case job.json leaves it open.
-                let y = match &v.y {
-                    Some(y) => y.clone(),
-                    None if data::column_names(&v.path)?.iter().any(|c| c == "y0") => "y0".into(),
-                    None => "y".into(),
-                };
+                // The sweep's default in case job.json leaves it open.
+                let y = data::validation_column(&v.path, v.y.as_deref(), "y")?;
                 Some(data::read_record(&v.path, &v.u, &y)?)
             }
             None => None,

@@ -1,0 +1,553 @@
+//! Whole operations, one function each, read top to bottom: [`prepare`] a job, [`run`] it,
+//! [`merge`] the shards of an output folder, [`fit`] one model, [`simulate`] a record. The
+//! command line (`cli.rs`) only turns arguments into the requests here and prints the
+//! outcomes; tests call these functions directly.
+//!
+//! A run is: validate the job and its data ([`prepare`]) -> lock the output folder
+//! ([`crate::lock`]) -> read the checkpoint of an interrupted run ([`crate::checkpoint`]) ->
+//! sweep the cells left, each finished row going to the checkpoint writer ([`crate::sweep`]) ->
+//! on a stop signal, return (resumable) -> otherwise reduce to the picks ([`crate::reduce`]),
+//! write the result files ([`crate::export`]), delete the checkpoint, and optionally the report
+//! ([`crate::report`]). A shard (`--shard I/N`) runs its share of the plan ([`crate::shard`])
+//! and stops once its rows are saved; [`merge`] combines the shards.
+
+use crate::checkpoint::{self, Manifest, StopOnSignal, Writer};
+use crate::data::{self, Record};
+use crate::error::{Error, Result};
+use crate::estimate::{self, HuberFit, Judge, LsFit, Problem, SolverOptions, Workspace};
+use crate::export;
+use crate::job::{self, Inputs, ValidJob};
+use crate::plan::Plan;
+use crate::progress::Progress;
+use crate::reduce::{self, ReduceOptions, Selection};
+use crate::shard::{self, Missing, Shard};
+use crate::simulate;
+use crate::spectral::{self, SpectralEstimate, WelchOptions};
+use crate::sweep::{self, Context};
+use crate::table::{CellRow, Method};
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// A job, its data and everything derived from them before estimation starts.
+pub struct Prepared {
+    pub job: ValidJob,
+    pub inputs: Inputs,
+    /// The spectral estimate of the estimation record and the bins of `band_hz`.
+    pub spectral: Option<(SpectralEstimate, Vec<usize>)>,
+    pub plan: Plan,
+}
+
+impl Prepared {
+    /// What every cell of this job needs besides its orders and k.
+    pub fn context(&self) -> Context<'_> {
+        Context {
+            est: &self.inputs.est,
+            val: self.inputs.val.as_ref(),
+            band: self.spectral.as_ref().map(|(s, b)| (s, &b[..])),
+            solver: self.job.job.solver.options(),
+        }
+    }
+
+    /// The fit column the picks are ranked by.
+    pub fn ranking(&self) -> reduce::FitBasis {
+        reduce::choose_basis(self.inputs.val.is_some(), self.spectral.is_some())
+    }
+}
+
+/// Read and check a job file and every data file it names; nothing is written.
+pub fn prepare(path: &Path) -> Result<Prepared> {
+    let mut job = job::load(path)?;
+    let inputs = job::load_inputs(&mut job)?;
+    let spectral = match job.job.band_hz {
+        Some([lo, hi]) => {
+            let s = spectral::welch(&inputs.est.u, &inputs.est.y, job.ts(), &WelchOptions::default())
+                .map_err(|e| Error::input(&job.job.data.path, e.to_string()))?;
+            let bins = s.band(lo, hi);
+            if bins.is_empty() {
+                return Err(Error::input(
+                    path,
+                    format!("field 'band_hz': [{lo}, {hi}] Hz holds no frequency bin of the spectral estimate"),
+                ));
+            }
+            Some((s, bins))
+        }
+        None => None,
+    };
+    let plan = Plan::from_job(&job);
+    Ok(Prepared { job, inputs, spectral, plan })
+}
+
+/// How to run a job.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    /// Worker threads (0: all cores). The table does not depend on it.
+    pub threads: usize,
+    /// No progress output.
+    pub quiet: bool,
+    /// Delete the checkpoint of an interrupted run instead of resuming from it.
+    pub force: bool,
+    /// Save finished rows at least this often (seconds), and every [`checkpoint::BATCH_ROWS`].
+    pub checkpoint_every: f64,
+    /// Run only this shard of the plan, without merging.
+    pub shard: Option<Shard>,
+    /// Also write the HTML report (whole runs only).
+    pub report: bool,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            threads: 0,
+            quiet: true,
+            force: false,
+            checkpoint_every: checkpoint::BATCH_SECONDS,
+            shard: None,
+            report: false,
+        }
+    }
+}
+
+impl RunOptions {
+    fn check(&self) -> Result<()> {
+        if !(self.checkpoint_every.is_finite() && self.checkpoint_every > 0.0) {
+            return Err(Error::Invalid(format!(
+                "--checkpoint-every must be a positive number of seconds, got {}",
+                self.checkpoint_every
+            )));
+        }
+        if self.shard.is_some() && self.report {
+            return Err(Error::Invalid(
+                "--report needs the merged table: use `oesweep merge OUTPUT --report` once all shards are done".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What a run found in its checkpoint before it started (reported before the sweep).
+#[derive(Clone, Debug)]
+pub struct Resumed {
+    /// The checkpoint folder.
+    pub folder: PathBuf,
+    pub parts: usize,
+    /// Huber cells and least-squares fits found done.
+    pub cells: usize,
+    pub ls: usize,
+    /// Of this run's plan.
+    pub plan_cells: usize,
+    pub plan_pairs: usize,
+    /// Rows dropped because an earlier part had their cell (parts copied in by hand).
+    pub duplicates: usize,
+}
+
+/// How a run ended.
+#[derive(Debug)]
+pub enum RunEnd {
+    /// Stopped by SIGINT/SIGTERM: the finished rows are in the checkpoint, nothing merged.
+    Interrupted,
+    /// A shard whose rows are all saved in its checkpoint folder, for [`merge`].
+    ShardSaved,
+    /// The result files are written; `report` is the report's page when one was asked for
+    /// (or the error that stopped it, after the results were written).
+    Merged { selection: Box<Selection>, report: Option<Result<PathBuf>> },
+}
+
+/// The outcome of [`run`].
+#[derive(Debug)]
+pub struct RunOutcome {
+    /// The job's name (and shard).
+    pub label: String,
+    pub out: PathBuf,
+    /// This run's checkpoint folder.
+    pub checkpoint: PathBuf,
+    pub shard: Option<Shard>,
+    /// Cells and least-squares fits of this run's plan.
+    pub cells: usize,
+    pub pairs: usize,
+    /// Huber cells finished in all (resumed and computed).
+    pub finished: usize,
+    /// Huber cells computed by this run.
+    pub computed: usize,
+    /// Huber cells taken from the checkpoint.
+    pub resumed: usize,
+    /// Rows (cells and fits) taken from the checkpoint.
+    pub resumed_rows: usize,
+    /// Failed Huber cells in the table.
+    pub failed: usize,
+    /// Wall time of the sweep.
+    pub seconds: f64,
+    /// Finished rows the checkpoint writer could not save, and why (they are in the results).
+    pub unsaved: Option<(usize, Error)>,
+    /// The checkpoint could not be deleted after the results were written.
+    pub cleanup: Option<Error>,
+    pub end: RunEnd,
+}
+
+impl RunOutcome {
+    /// 130 interrupted, 1 when a cell failed, else 0.
+    pub fn exit_code(&self) -> u8 {
+        match self.end {
+            RunEnd::Interrupted => 130,
+            _ if self.failed > 0 => 1,
+            _ => 0,
+        }
+    }
+}
+
+/// Run a job (see the module documentation). Everything that can be checked is checked before
+/// anything is written; `on_resume` hears what the checkpoint held before the sweep starts.
+pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> Result<RunOutcome> {
+    opts.check()?;
+    let p = prepare(job_file)?;
+    let out = p.job.output().to_path_buf();
+    let (plan, label) = match opts.shard {
+        Some(s) => (shard::plan_of(&p.plan, s).0, format!("{} shard {s}", p.job.job.name)),
+        None => (p.plan.clone(), p.job.job.name.clone()),
+    };
+    let parts = checkpoint::folder(&out, opts.shard);
+    let manifest = Manifest::of_job(&p.job)?;
+
+    // Locked before the checkpoint is read: another run of this folder could be changing it.
+    std::fs::create_dir_all(&out).map_err(|e| Error::output(&out, format!("cannot create output folder: {e}")))?;
+    let _lock = match opts.shard {
+        Some(s) => crate::lock::lock_shard(&out, s)?,
+        None => crate::lock::lock_output(&out)?,
+    };
+    // A checkpoint of another job is bad input too: refused before anything is written.
+    let existing = match (opts.force, opts.shard) {
+        (true, _) => checkpoint::Existing::default(),
+        (false, Some(_)) => checkpoint::inspect(&parts, &manifest, &plan)?,
+        (false, None) => checkpoint::inspect_all(&out, &manifest, &plan)?,
+    };
+    checkpoint::open(&out, opts.shard, &manifest, &p.job.job, opts.force)?;
+    let (pairs, cells) = (plan.pairs.len(), plan.n_cells());
+    let resumed_huber = existing.huber_rows();
+    let resumed_rows = existing.rows.len();
+    on_resume(&Resumed {
+        folder: parts.clone(),
+        parts: existing.parts,
+        cells: resumed_huber,
+        ls: resumed_rows - resumed_huber,
+        plan_cells: cells,
+        plan_pairs: pairs,
+        duplicates: existing.duplicates,
+    });
+
+    // The sweep, every finished row handed to the checkpoint writer at once.
+    let writer = Writer::start(
+        parts.clone(),
+        existing.next_part,
+        Duration::from_secs_f64(opts.checkpoint_every),
+        checkpoint::BATCH_ROWS,
+    );
+    let progress = Progress::new(cells - resumed_huber, opts.quiet);
+    let outcome = {
+        let signals = StopOnSignal::install();
+        let tx = writer.sender();
+        // A send fails only if the writer thread is gone; the row is still in the outcome.
+        let on_row = |row: &CellRow| {
+            let _ = tx.send(row.clone());
+        };
+        let control = sweep::Control { done: existing.rows, on_row: &on_row, stop: signals.flag() };
+        sweep::run(&plan, &p.context(), opts.threads, &progress, control)
+    };
+    progress.finish();
+    let saved = writer.finish();
+    let mut result = RunOutcome {
+        label,
+        out: out.clone(),
+        checkpoint: parts.clone(),
+        shard: opts.shard,
+        cells,
+        pairs,
+        finished: outcome.rows.iter().filter(|r| r.method == Method::Huber).count(),
+        computed: outcome.computed,
+        resumed: outcome.resumed,
+        resumed_rows,
+        failed: outcome.failed_cells(),
+        seconds: outcome.seconds,
+        unsaved: saved.error.map(|e| (saved.unsaved, e)),
+        cleanup: None,
+        end: RunEnd::Interrupted,
+    };
+    if outcome.interrupted {
+        return Ok(result);
+    }
+    if opts.shard.is_some() {
+        // The checkpoint is this shard's only result: rows that did not reach it are lost.
+        if let Some((n, e)) = result.unsaved {
+            return Err(Error::output(
+                &parts,
+                format!("{n} finished rows could not be saved ({e}); run the shard again to redo them"),
+            ));
+        }
+        result.end = RunEnd::ShardSaved;
+        return Ok(result);
+    }
+
+    // A whole run: the results, then the checkpoint has served (if deleting it fails, a rerun
+    // finds every cell done and merges again), then the report.
+    let selection = write_results(&out, &p.job.job, &outcome.rows)?;
+    result.cleanup = checkpoint::remove(&out).err();
+    let report = opts.report.then(|| crate::report::write_report(&out));
+    result.end = RunEnd::Merged { selection: Box::new(selection), report };
+    Ok(result)
+}
+
+/// `job.json` in the output folder: the normalised job and the program that ran it.
+#[derive(serde::Serialize)]
+struct JobAsRun<'a> {
+    oesweep_version: &'static str,
+    #[serde(flatten)]
+    job: &'a job::Job,
+}
+
+/// The result files of a complete (or `--partial`) table: `cells.parquet`, `selection.json`,
+/// `job.json`, replacing any report of an earlier table. Returns the picks.
+fn write_results(out: &Path, job: &job::Job, rows: &[CellRow]) -> Result<Selection> {
+    let sel_opts = ReduceOptions {
+        basis: reduce::choose_basis(job.validation.is_some(), job.band_hz.is_some()),
+        min_tolerance: job.selection.min_tolerance,
+        fit_tolerance: job.selection.fit_tolerance,
+    };
+    let selection = reduce::select(rows, &sel_opts);
+    // A report of the previous table would describe models this table may not have.
+    crate::report::remove_report(out);
+    export::parquet::write_cells(&out.join("cells.parquet"), rows)?;
+    export::json::write_json(&out.join("selection.json"), &selection)?;
+    export::json::write_json(&out.join("job.json"), &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job })?;
+    Ok(selection)
+}
+
+/// Failed Huber cells of a table.
+pub fn failed_cells(rows: &[CellRow]) -> usize {
+    rows.iter().filter(|r| r.method == Method::Huber && !r.ok()).count()
+}
+
+/// How [`merge`] ended.
+#[derive(Debug)]
+pub enum MergeEnd {
+    /// No checkpoint left and the result files are there: merged before, nothing to do.
+    AlreadyMerged,
+    /// Cells are missing and `partial` was not asked for: nothing written.
+    Incomplete,
+    /// The result files are written (with `missing` cells left out under `partial`; the
+    /// checkpoint is then kept, else deleted).
+    Merged { selection: Box<Selection> },
+}
+
+/// The outcome of [`merge`].
+#[derive(Debug)]
+pub struct MergeOutcome {
+    pub end: MergeEnd,
+    /// The job's name.
+    pub name: String,
+    pub plan: Option<Plan>,
+    /// Cells and fits missing from the checkpoint folders.
+    pub missing: Missing,
+    /// When the folders say how the job was split into N shards: N and the shards that hold
+    /// the missing cells.
+    pub owners: Option<(usize, Vec<usize>)>,
+    /// Checkpoint folders read with their part counts (those with parts).
+    pub folders: Vec<(PathBuf, usize)>,
+    /// Cells saved twice (identical rows), kept once.
+    pub duplicates: usize,
+    /// Huber cells and least-squares fits merged; failed Huber cells in the table.
+    pub huber: usize,
+    pub ls: usize,
+    pub failed: usize,
+    pub cleanup: Option<Error>,
+    pub report: Option<Result<PathBuf>>,
+}
+
+impl MergeOutcome {
+    /// 1 when cells are missing (without `partial`) or a cell of the table failed, else 0.
+    pub fn exit_code(&self) -> u8 {
+        match self.end {
+            MergeEnd::Incomplete => 1,
+            _ if self.failed > 0 => 1,
+            _ => 0,
+        }
+    }
+}
+
+/// Merge every checkpoint folder of an output folder (shards, or an interrupted whole run):
+/// check that together they hold every cell of the job exactly once and write the result files
+/// exactly as a whole run does (same rows, same order, same reducer). Missing cells: nothing
+/// is written unless `partial`. A complete merge deletes the checkpoint, like a whole run; a
+/// folder already merged is left as it is (so a merge job that runs twice succeeds twice).
+pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
+    if !out.is_dir() {
+        return Err(Error::input(out, "not a folder"));
+    }
+    let _lock = crate::lock::lock_output(out)?;
+    let mut result = MergeOutcome {
+        end: MergeEnd::AlreadyMerged,
+        name: String::new(),
+        plan: None,
+        missing: Missing::default(),
+        owners: None,
+        folders: Vec::new(),
+        duplicates: 0,
+        huber: 0,
+        ls: 0,
+        failed: 0,
+        cleanup: None,
+        report: None,
+    };
+    let merged = ["cells.parquet", "selection.json", "job.json"].iter().all(|f| out.join(f).is_file());
+    if !merged || out.join(checkpoint::PARTS_DIR).exists() {
+        let g = checkpoint::gather(out)?;
+        result.name = g.job.name.clone();
+        result.duplicates = g.duplicates;
+        result.missing = shard::missing(&g.plan, &g.rows);
+        // The shards to rerun, when the folders say how the job was split.
+        let counts: BTreeSet<usize> = g.folders.iter().filter_map(|(_, s, _)| s.map(|s| s.count)).collect();
+        if let [n] = counts.iter().copied().collect::<Vec<_>>()[..] {
+            let layout = shard::layout(&g.plan, n);
+            let owners = (0..n)
+                .filter(|&s| layout[s].iter().any(|p| result.missing.pairs.iter().any(|(q, _, _)| q == p)))
+                .collect();
+            result.owners = Some((n, owners));
+        }
+        result.folders = g.folders.iter().filter(|(_, _, n)| *n > 0).map(|(d, _, n)| (d.clone(), *n)).collect();
+        result.plan = Some(g.plan.clone());
+        if !result.missing.is_empty() && !partial {
+            result.end = MergeEnd::Incomplete;
+            return Ok(result);
+        }
+        let selection = write_results(out, &g.job, &g.rows)?;
+        result.huber = g.rows.iter().filter(|r| r.method == Method::Huber).count();
+        result.ls = g.rows.len() - result.huber;
+        if result.missing.is_empty() {
+            result.cleanup = checkpoint::remove(out).err();
+        }
+        result.end = MergeEnd::Merged { selection: Box::new(selection) };
+    }
+    if report {
+        result.report = Some(crate::report::write_report(out));
+    }
+    result.failed = failed_cells(&export::parquet::read_cells(&out.join("cells.parquet"))?);
+    Ok(result)
+}
+
+/// One model, `oesweep fit`: the least-squares fit of (nB, nF) and the Huber fit at k from it.
+#[derive(Clone, Debug)]
+pub struct FitRequest {
+    pub data: PathBuf,
+    pub u: String,
+    pub y: String,
+    pub validation: Option<PathBuf>,
+    /// Validation output column (default: see [`data::validation_column`]).
+    pub val_y: Option<String>,
+    pub nb: usize,
+    pub nf: usize,
+    pub k: f64,
+    pub delay: usize,
+    /// Sampling period (needed for `band`).
+    pub ts: Option<f64>,
+    pub band: Option<(f64, f64)>,
+    pub solver: SolverOptions,
+}
+
+/// Report of [`fit`] (`fit --json` prints it).
+#[derive(serde::Serialize)]
+pub struct FitReport {
+    pub data: PathBuf,
+    pub n: usize,
+    pub validation: Option<PathBuf>,
+    pub validation_column: Option<String>,
+    pub nb: usize,
+    pub nf: usize,
+    pub delay: usize,
+    pub band_hz: Option<(f64, f64)>,
+    pub sigma: f64,
+    #[serde(flatten)]
+    pub huber: HuberFit,
+    pub converged: bool,
+    pub seconds: f64,
+    pub ls: LsFit,
+}
+
+impl FitRequest {
+    /// The job file's rules, named as the command line names the settings.
+    fn check(&self) -> Result<()> {
+        let bad = |flag: &str, msg: String| Error::Invalid(format!("{flag} {msg}"));
+        if self.nb == 0 {
+            return Err(Error::Invalid("--nb must be at least 1".into()));
+        }
+        job::check_k(self.k).map_err(|m| bad("--k", m))?;
+        if let Some(ts) = self.ts {
+            job::check_sampling_period(ts).map_err(|m| bad("--ts", m))?;
+        }
+        if let Some((lo, hi)) = self.band {
+            let Some(ts) = self.ts else {
+                return Err(Error::Invalid("--band needs --ts (the sampling period in seconds)".into()));
+            };
+            job::check_band(lo, hi, ts).map_err(|m| bad(&format!("--band {lo},{hi}:"), m))?;
+        }
+        if self.solver.max_iterations == 0 {
+            return Err(Error::Invalid("--max-iterations must be at least 1".into()));
+        }
+        Ok(())
+    }
+}
+
+/// Fit one model (see [`FitRequest`]).
+pub fn fit(req: &FitRequest) -> Result<FitReport> {
+    req.check()?;
+    let est = data::read_record(&req.data, &req.u, &req.y)?;
+    data::check_for_model(&est, req.nb, req.nf, req.delay)?;
+    let val: Option<Record> = match &req.validation {
+        Some(p) => {
+            let col = data::validation_column(p, req.val_y.as_deref(), &req.y)?;
+            let v = data::read_record(p, &req.u, &col)?;
+            data::check_for_model(&v, req.nb, req.nf, req.delay)?;
+            Some(v)
+        }
+        None => None,
+    };
+    let spec = match (req.band, req.ts) {
+        (Some((lo, hi)), Some(ts)) => {
+            let s = spectral::welch(&est.u, &est.y, ts, &WelchOptions::default())?;
+            let bins = s.band(lo, hi);
+            Some((s, bins))
+        }
+        _ => None,
+    };
+    let judge = Judge {
+        validation: val.as_ref().map(|v| (&v.u[..], &v.y[..])),
+        band: spec.as_ref().map(|(s, bins)| (s, &bins[..])),
+    };
+    let prob = Problem { u: &est.u, y: &est.y, nb: req.nb, nf: req.nf, delay: req.delay };
+    let mut ws = Workspace::new();
+    let t0 = Instant::now();
+    let ls = estimate::fit_ls(&prob, &judge, &req.solver, &mut ws);
+    let (huber, _) = estimate::fit_huber_multi(&prob, &ls, req.k, &judge, &req.solver, &mut ws);
+    let seconds = t0.elapsed().as_secs_f64();
+    Ok(FitReport {
+        data: req.data.clone(),
+        n: est.u.len(),
+        validation: req.validation.clone(),
+        validation_column: val.as_ref().map(|v| v.y_name.clone()),
+        nb: req.nb,
+        nf: req.nf,
+        delay: req.delay,
+        band_hz: req.band,
+        sigma: ls.sigma,
+        converged: huber.termination.converged(),
+        huber,
+        seconds,
+        ls,
+    })
+}
+
+/// Example data, `oesweep simulate`: the system file's OE model driven by a PRBS, with noise
+/// and spikes as `opts` say, written to `out` as CSV (`u,y,y0`). Returns the samples written.
+pub fn simulate(system: &Path, out: &Path, opts: &simulate::SimOptions) -> Result<usize> {
+    let sys = simulate::read_system(system)?;
+    let rec = simulate::generate(&sys, opts)?;
+    simulate::write_csv(out, &rec)?;
+    Ok(opts.n)
+}
