@@ -6,9 +6,10 @@
 //!   least-squares minimum;
 //! - `huber_phase`: one LM minimisation of W_{N, k sigma} from theta_LS (what `fit_huber`
 //!   spends in the solver), the unit the other Huber costs are multiples of;
-//! - `huber_multi`: the Huber phase as the CLI runs it and the sweep's default start strategy
-//!   repeats it (`fit_huber_multi`: theta_LS plus the alternative starts the L2 phase leaves,
-//!   best kept), i.e. what one more k costs a cell;
+//! - `huber_multi`: the Huber phase as `oesweep fit` runs it (`fit_huber_multi`: theta_LS plus
+//!   the alternative starts the L2 phase leaves, best kept): what one more k costs a cell under
+//!   the `ls` start strategy, and what the first (cold) cell of a pair costs under the default
+//!   `chains` (whose later cells are warm starts, a few iterations each);
 //! - `huber_phase_n`: `huber_phase` on simulated records of growing length, to show that the
 //!   cost per iteration is linear in N.
 //!

@@ -3,7 +3,7 @@
 //!
 //! **The unit is the order pair.** The least-squares phase of a pair (and its extra Huber
 //! starts, [`crate::estimate::LsFit::alternatives`]) is shared by all its k values, and a
-//! continuation chain (`start: neighbour | best`) runs through all of them in order. Splitting a
+//! continuation chain (`start: chains | neighbour | best`) runs through all of them in order. Splitting a
 //! pair would either compute its least-squares phase twice or make one shard wait for
 //! another; giving every pair to exactly one shard does neither, and each shard is then simply
 //! the sweep of a smaller plan, computed by the same code with the same bits.

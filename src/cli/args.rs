@@ -1,0 +1,219 @@
+//! The command line's arguments (clap).
+
+use crate::checkpoint;
+use crate::estimate::{HuberHessian, SolverOptions};
+use crate::shard::Shard;
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use std::path::PathBuf;
+
+#[derive(Parser, Debug)]
+#[command(name = "oesweep", version, about = "Robust (Huber) output-error identification and model-order search")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Estimate one OE(nB, nF) model under Huber's criterion and report its quality.
+    Fit(FitArgs),
+    /// Make example data: PRBS input through an OE system, plus noise and outliers.
+    Simulate(SimulateArgs),
+    /// Validate a job file and its data without estimating; print the grid and the output folder.
+    Plan(PlanArgs),
+    /// Run a job: estimate every cell, write the result tables and the model picks.
+    Run(RunArgs),
+    /// Write report.html with figures for a finished sweep's output folder.
+    Report(ReportArgs),
+    /// Merge the shards (`run --shard I/N`) in an output folder into the result files.
+    Merge(MergeArgs),
+    /// Submit a job to Slurm: an array job of N shards, then a merge job that waits for them.
+    Slurm(SlurmArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct MergeArgs {
+    /// Output folder the shards wrote into (the job's `output`).
+    pub folder: PathBuf,
+    /// Merge even when some cells are missing (the checkpoint is then kept).
+    #[arg(long)]
+    pub partial: bool,
+    /// Also write the HTML report (see `oesweep report`).
+    #[arg(long)]
+    pub report: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct SlurmArgs {
+    /// Job file (JSON).
+    pub job: PathBuf,
+    /// Number of shards (array tasks).
+    #[arg(long)]
+    pub shards: usize,
+    /// Folder holding your own `sweep.sbatch` and `merge.sbatch` [default: the templates of
+    /// jobs/slurm/ built into oesweep, written to <output>/slurm/].
+    #[arg(long, value_name = "DIR")]
+    pub sbatch: Option<PathBuf>,
+    /// CPUs per array task (sbatch --cpus-per-task; each shard uses that many threads).
+    #[arg(long)]
+    pub cpus_per_task: Option<usize>,
+    /// Extra option for both sbatch calls, e.g. --sbatch-arg=--partition=long (repeatable).
+    #[arg(long, value_name = "OPTION", allow_hyphen_values = true)]
+    pub sbatch_arg: Vec<String>,
+    /// Let the merge job write the HTML report too.
+    #[arg(long)]
+    pub report: bool,
+    /// Print the sbatch commands instead of running them.
+    #[arg(long)]
+    pub dry_run: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct ReportArgs {
+    /// Output folder of a finished `oesweep run`.
+    pub folder: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct PlanArgs {
+    /// Job file (JSON).
+    pub job: PathBuf,
+    /// Also print how `run --shard I/N` splits the job into N shards.
+    #[arg(long, value_name = "N")]
+    pub shards: Option<usize>,
+}
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// Job file (JSON).
+    pub job: PathBuf,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// No progress output.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Also write the HTML report (see `oesweep report`).
+    #[arg(long)]
+    pub report: bool,
+    /// Start over: delete the checkpoint of an interrupted run in the output folder instead of
+    /// resuming from it (needed when the job or its data changed since).
+    #[arg(long)]
+    pub force: bool,
+    /// Save finished cells to the checkpoint at least this often (and every 500 cells).
+    #[arg(long, value_name = "SECONDS", default_value_t = checkpoint::BATCH_SECONDS)]
+    pub checkpoint_every: f64,
+    /// Run only shard I (0-based) of N: a share of the order pairs, saved in
+    /// <output>/parts/shard-I-of-N/ and not merged (see `oesweep merge`).
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<Shard>,
+}
+
+#[derive(Args, Debug)]
+pub struct FitArgs {
+    /// Estimation record (CSV with a header row, or Parquet).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Validation record, used only to judge the model.
+    #[arg(long)]
+    pub validation: Option<PathBuf>,
+    /// Number of B coefficients (numerator), >= 1.
+    #[arg(long)]
+    pub nb: usize,
+    /// Number of F coefficients (denominator order), >= 0.
+    #[arg(long)]
+    pub nf: usize,
+    /// Huber tuning constant: gamma = k * sigma (sigma from the least-squares fit).
+    #[arg(long)]
+    pub k: f64,
+    /// Input delay d in samples.
+    #[arg(long, default_value_t = 1)]
+    pub delay: usize,
+    /// Sampling period in seconds (needed for --band).
+    #[arg(long)]
+    pub ts: Option<f64>,
+    /// Frequency band LO,HI in Hz for the band fit against a Welch spectral estimate.
+    #[arg(long, value_parser = parse_band)]
+    pub band: Option<(f64, f64)>,
+    /// Input column name.
+    #[arg(long, default_value = "u")]
+    pub u: String,
+    /// Output column name of the estimation record.
+    #[arg(long, default_value = "y")]
+    pub y: String,
+    /// Output column of the validation record [default: `y0` (noise-free output, as written
+    /// by `oesweep simulate`) when the file has one, else the --y column].
+    #[arg(long)]
+    pub val_y: Option<String>,
+    /// Iteration cap of each minimisation.
+    #[arg(long, default_value_t = SolverOptions::default().max_iterations)]
+    pub max_iterations: usize,
+    /// Relative criterion-change tolerance of each minimisation.
+    #[arg(long, default_value_t = SolverOptions::default().ftol)]
+    pub ftol: f64,
+    /// Huber Hessian: exact Gauss-Newton (L1 rows weight 0) or IRLS (weight gamma/|e|).
+    #[arg(long, value_enum, default_value = "gauss-newton")]
+    pub huber_hessian: HessianArg,
+    /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct SimulateArgs {
+    /// System file: {"b": [...], "f": [...], "delay": 1}.
+    #[arg(long)]
+    pub system: PathBuf,
+    /// Output CSV (columns u, y, y0).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Number of samples.
+    #[arg(long, default_value_t = 5000)]
+    pub n: usize,
+    /// Seed of the PRBS state and of the noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// PRBS shift-register length (period 2^bits - 1).
+    #[arg(long, default_value_t = 10)]
+    pub bits: u32,
+    /// PRBS level: the input is +/- amplitude.
+    #[arg(long, default_value_t = 10.0)]
+    pub amplitude: f64,
+    /// Standard deviation (Gaussian) or scale (Student-t) of the output noise.
+    #[arg(long, default_value_t = 0.0)]
+    pub noise_std: f64,
+    /// Student-t noise with this many degrees of freedom instead of Gaussian.
+    #[arg(long)]
+    pub student_t: Option<f64>,
+    /// Probability of an output spike per sample.
+    #[arg(long, default_value_t = 0.0)]
+    pub outlier_prob: f64,
+    /// Spike magnitude range MIN,MAX (random sign).
+    #[arg(long, value_parser = parse_band, default_value = "5,10")]
+    pub outlier_range: (f64, f64),
+}
+
+/// `--huber-hessian` ([`HuberHessian`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum HessianArg {
+    GaussNewton,
+    Irls,
+}
+
+impl From<HessianArg> for HuberHessian {
+    fn from(a: HessianArg) -> Self {
+        match a {
+            HessianArg::GaussNewton => HuberHessian::GaussNewton,
+            HessianArg::Irls => HuberHessian::Irls,
+        }
+    }
+}
+
+fn parse_band(s: &str) -> std::result::Result<(f64, f64), String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 2 {
+        return Err(format!("expected two numbers LO,HI, got '{s}'"));
+    }
+    let p = |x: &str| x.trim().parse::<f64>().map_err(|_| format!("'{x}' is not a number"));
+    Ok((p(parts[0])?, p(parts[1])?))
+}

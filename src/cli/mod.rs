@@ -1,0 +1,302 @@
+//! Command-line interface: argument definitions ([`args`]), their conversion into the
+//! library's requests ([`crate::engine`], [`crate::slurm`]), and the printing of the outcomes
+//! (`print`). No estimation, file layout or rule lives here.
+
+mod args;
+mod print;
+
+pub use args::*;
+
+use crate::engine::{self, FitRequest, MergeEnd, RunEnd, RunOptions};
+use crate::error::{Error, Result};
+use crate::estimate::SolverOptions;
+use crate::shard;
+use crate::simulate;
+use print::{describe_grid, print_fit_summary, print_layout, print_picks, print_report};
+
+/// Run a parsed command; returns the process exit code.
+pub fn run(cli: Cli) -> Result<u8> {
+    match cli.command {
+        Command::Fit(a) => run_fit(&a),
+        Command::Simulate(a) => run_simulate(&a),
+        Command::Plan(a) => run_plan(&a),
+        Command::Run(a) => run_job(&a),
+        Command::Report(a) => {
+            let page = crate::report::write_report(&a.folder)?;
+            println!("wrote {}", page.display());
+            Ok(0)
+        }
+        Command::Merge(a) => run_merge(&a),
+        Command::Slurm(a) => run_slurm(&a),
+    }
+}
+
+fn run_fit(a: &FitArgs) -> Result<u8> {
+    let req = FitRequest {
+        data: a.data.clone(),
+        u: a.u.clone(),
+        y: a.y.clone(),
+        validation: a.validation.clone(),
+        val_y: a.val_y.clone(),
+        nb: a.nb,
+        nf: a.nf,
+        k: a.k,
+        delay: a.delay,
+        ts: a.ts,
+        band: a.band,
+        solver: SolverOptions {
+            max_iterations: a.max_iterations,
+            ftol: a.ftol,
+            huber_hessian: a.huber_hessian.into(),
+            ..Default::default()
+        },
+    };
+    let report = engine::fit(&req)?;
+    if a.json {
+        println!("{}", serde_json::to_string(&report).expect("report serialises"));
+    } else {
+        print_fit_summary(&report);
+    }
+    Ok(0)
+}
+
+fn run_simulate(a: &SimulateArgs) -> Result<u8> {
+    let (lo, hi) = a.outlier_range;
+    if a.n == 0 {
+        return Err(Error::Invalid("--n must be at least 1".into()));
+    }
+    if !(a.noise_std >= 0.0 && a.noise_std.is_finite()) {
+        return Err(Error::Invalid(format!("--noise-std must be >= 0, got {}", a.noise_std)));
+    }
+    if !(0.0..=1.0).contains(&a.outlier_prob) {
+        return Err(Error::Invalid(format!("--outlier-prob must be in [0, 1], got {}", a.outlier_prob)));
+    }
+    if !(lo >= 0.0 && hi >= lo && hi.is_finite()) {
+        return Err(Error::Invalid(format!("--outlier-range {lo},{hi}: need 0 <= MIN <= MAX")));
+    }
+    if let Some(dof) = a.student_t
+        && (dof <= 0.0 || dof.is_nan())
+    {
+        return Err(Error::Invalid(format!("--student-t needs positive degrees of freedom, got {dof}")));
+    }
+    let opts = simulate::SimOptions {
+        n: a.n,
+        bits: a.bits,
+        amplitude: a.amplitude,
+        seed: a.seed,
+        noise_std: a.noise_std,
+        noise: match a.student_t {
+            Some(dof) => simulate::NoiseKind::StudentT { dof },
+            None => simulate::NoiseKind::Gaussian,
+        },
+        outliers: (a.outlier_prob > 0.0).then_some(simulate::Outliers {
+            probability: a.outlier_prob,
+            min: a.outlier_range.0,
+            max: a.outlier_range.1,
+        }),
+    };
+    let n = engine::simulate(&a.system, &a.out, &opts)?;
+    eprintln!("wrote {} ({n} samples)", a.out.display());
+    Ok(0)
+}
+
+fn run_plan(a: &PlanArgs) -> Result<u8> {
+    let p = engine::prepare(&a.job)?;
+    let j = &p.job;
+    println!("job        {} ({})", j.job.name, j.file.display());
+    println!("data       {} ({} samples, Ts = {} s)", j.job.data.path.display(), p.inputs.est.u.len(), j.ts());
+    if let (Some(v), Some(rec)) = (&j.job.validation, &p.inputs.val) {
+        println!("validation {} ({} samples, column '{}')", v.path.display(), rec.u.len(), rec.y_name);
+    }
+    println!("grid       {}", describe_grid(&p));
+    println!("cells      {} Huber cells + {} least-squares fits", j.n_cells(), j.n_pairs());
+    println!("start      {}", j.job.start.as_str());
+    println!("ranking    by {:?} fit", p.ranking());
+    println!("output     {}", j.output().display());
+    if let Some(n) = a.shards {
+        if n == 0 {
+            return Err(Error::Invalid("--shards must be at least 1".into()));
+        }
+        print_layout(&p.plan, n);
+    }
+    Ok(0)
+}
+
+/// `oesweep run` ([`engine::run`]).
+fn run_job(a: &RunArgs) -> Result<u8> {
+    let opts = RunOptions {
+        threads: a.threads,
+        quiet: a.quiet,
+        force: a.force,
+        checkpoint_every: a.checkpoint_every,
+        shard: a.shard,
+        report: a.report,
+    };
+    let on_resume = |r: &engine::Resumed| {
+        if r.cells + r.ls > 0 && !a.quiet {
+            eprintln!(
+                "resuming from {} ({} parts): {} of {} cells and {} of {} least-squares fits already done",
+                r.folder.display(),
+                r.parts,
+                r.cells,
+                r.plan_cells,
+                r.ls,
+                r.plan_pairs,
+            );
+        }
+        if r.duplicates > 0 {
+            eprintln!(
+                "warning: {}: {} duplicate rows ignored (the first of each cell is kept)",
+                r.folder.display(),
+                r.duplicates
+            );
+        }
+    };
+    let o = engine::run(&a.job, &opts, &on_resume)?;
+    if let Some((n, e)) = &o.unsaved {
+        eprintln!("warning: {n} finished rows could not be saved to the checkpoint: {e}");
+    }
+    let (cells, pairs, failed) = (o.cells, o.pairs, o.failed);
+    let rate = o.computed as f64 / o.seconds.max(1e-9);
+    match o.end {
+        RunEnd::Interrupted => {
+            let shard_arg = o.shard.map_or(String::new(), |s| format!(" --shard {s}"));
+            eprintln!(
+                "interrupted: {} of {cells} cells finished ({} in this run); they are saved in {}",
+                o.finished,
+                o.computed,
+                o.checkpoint.display()
+            );
+            eprintln!(
+                "to resume, run `oesweep run {}{shard_arg}` again (with --force to start over instead)",
+                a.job.display()
+            );
+        }
+        RunEnd::ShardSaved => {
+            let label = &o.label;
+            println!(
+                "{label}: {cells} cells ({failed} failed) + {pairs} least-squares fits, saved in {}",
+                o.checkpoint.display()
+            );
+            if o.resumed_rows > 0 {
+                println!("{} cells resumed from the checkpoint, {} computed in this run", o.resumed, o.computed);
+            }
+            println!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
+            let count = o.shard.map_or(1, |s| s.count);
+            println!("when all {count} shards are done: oesweep merge {}", o.out.display());
+        }
+        RunEnd::Merged { ref selection, .. } => {
+            println!("{}: {cells} cells ({failed} failed) + {pairs} least-squares fits", o.label);
+            if o.resumed_rows > 0 {
+                println!(
+                    "{} cells and {} least-squares fits resumed from the checkpoint, {} cells computed in this run",
+                    o.resumed,
+                    o.resumed_rows - o.resumed,
+                    o.computed
+                );
+            }
+            println!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
+            print_picks(selection);
+            println!("results in {}", o.out.display());
+            if let Some(e) = &o.cleanup {
+                eprintln!("warning: {e}");
+            }
+        }
+    }
+    let code = o.exit_code();
+    if let RunEnd::Merged { report, .. } = o.end {
+        print_report(report)?;
+    }
+    Ok(code)
+}
+
+/// `oesweep merge` ([`engine::merge`]).
+fn run_merge(a: &MergeArgs) -> Result<u8> {
+    let out = &a.folder;
+    let m = engine::merge(out, a.partial, a.report)?;
+    if m.duplicates > 0 {
+        eprintln!("note: {} cells were saved twice (identical rows); each is kept once", m.duplicates);
+    }
+    if !m.missing.is_empty() {
+        let plan = m.plan.as_ref().expect("a merge that found missing cells has a plan");
+        eprintln!(
+            "{}: {} of {} cells and {} of {} least-squares fits are missing:",
+            out.display(),
+            m.missing.cells,
+            plan.n_cells(),
+            m.missing.ls,
+            plan.pairs.len()
+        );
+        for line in m.missing.lines(plan, 20) {
+            eprintln!("  {line}");
+        }
+        if let Some((n, owners)) = &m.owners {
+            eprintln!(
+                "  they belong to shard {} of {n}: run `oesweep run JOB --shard I/{n}` for each",
+                shard::ranges(owners)
+            );
+        }
+    }
+    match &m.end {
+        MergeEnd::AlreadyMerged => println!("{}: already merged (no checkpoint left), nothing to do", out.display()),
+        MergeEnd::Incomplete => {
+            eprintln!(
+                "nothing written; rerun the missing shards and merge again, or merge what there is with --partial"
+            );
+            return Ok(m.exit_code());
+        }
+        MergeEnd::Merged { selection } => {
+            let plan = m.plan.as_ref().expect("merged from a plan");
+            let read: Vec<String> = m
+                .folders
+                .iter()
+                .map(|(d, n)| format!("{} ({n} parts)", d.file_name().unwrap_or_default().to_string_lossy()))
+                .collect();
+            println!("merged {}", read.join(", "));
+            println!(
+                "{}: {} of {} cells ({} failed) + {} of {} least-squares fits",
+                m.name,
+                m.huber,
+                plan.n_cells(),
+                m.failed,
+                m.ls,
+                plan.pairs.len()
+            );
+            print_picks(selection);
+            println!("results in {}", out.display());
+            if m.missing.is_empty() {
+                if let Some(e) = &m.cleanup {
+                    eprintln!("warning: {e}");
+                }
+            } else {
+                println!("partial merge: the checkpoint is kept; merge again once the missing cells are done");
+            }
+        }
+    }
+    let code = m.exit_code();
+    print_report(m.report)?;
+    Ok(code)
+}
+
+/// `oesweep slurm` ([`crate::slurm::submit`]).
+fn run_slurm(a: &SlurmArgs) -> Result<u8> {
+    let req = crate::slurm::SlurmRequest {
+        job: a.job.clone(),
+        shards: a.shards,
+        sbatch: a.sbatch.clone(),
+        cpus_per_task: a.cpus_per_task,
+        sbatch_args: a.sbatch_arg.clone(),
+        report: a.report,
+    };
+    if a.dry_run {
+        let (sweep, merge) = crate::slurm::commands(&req)?;
+        println!("OESWEEP={} sbatch {}", sweep.exe.display(), sweep.args.join(" "));
+        println!("OESWEEP={} sbatch --dependency=afterok:<sweep job id> {}", merge.exe.display(), merge.args.join(" "));
+        return Ok(0);
+    }
+    let s = crate::slurm::submit(&req)?;
+    println!("sweep job {} (array of {} shards)", s.sweep_id, a.shards);
+    println!("merge job {} (starts when every shard succeeded)", s.merge_id);
+    println!("results in {}, Slurm logs in {}", s.out.display(), s.logs.display());
+    Ok(0)
+}

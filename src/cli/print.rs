@@ -1,0 +1,101 @@
+//! How the commands print their outcomes (stdout: results; stderr: notes and warnings).
+
+use crate::engine::{FitReport, Prepared};
+use crate::error::Result;
+use crate::plan::Plan;
+use crate::{reduce, shard};
+use std::path::PathBuf;
+
+pub(super) fn opt_pct(v: Option<f64>) -> String {
+    v.map_or_else(|| "-".to_string(), |x| format!("{x:.2} %"))
+}
+
+pub(super) fn print_fit_summary(r: &FitReport) {
+    let h = &r.huber;
+    let l = &r.ls;
+    println!("OE(nB={}, nF={}) delay {} on {} ({} samples)", r.nb, r.nf, r.delay, r.data.display(), r.n);
+    if let (Some(p), Some(c)) = (&r.validation, &r.validation_column) {
+        println!("validation: {} (column '{c}')", p.display());
+    }
+    println!();
+    println!("{:<22}{:>18}{:>18}", "", "least squares", format!("Huber k={}", h.k));
+    println!("{:<22}{:>18.6e}{:>18.6e}", "criterion", l.criterion, h.criterion);
+    println!("{:<22}{:>18}{:>18.6e}", "gamma", "-", h.gamma);
+    println!("{:<22}{:>18.6e}{:>18}", "sigma", l.sigma, "");
+    println!("{:<22}{:>18}{:>18}", "L1C", "-", format!("{:.2} %", 100.0 * h.l1c));
+    println!(
+        "{:<22}{:>18}{:>18}",
+        "fit (estimation)",
+        opt_pct(Some(l.assessment.fit)),
+        opt_pct(Some(h.assessment.fit))
+    );
+    println!("{:<22}{:>18}{:>18}", "fit (validation)", opt_pct(l.assessment.fit_val), opt_pct(h.assessment.fit_val));
+    println!("{:<22}{:>18}{:>18}", "fit (band)", opt_pct(l.assessment.fit_band), opt_pct(h.assessment.fit_band));
+    println!("{:<22}{:>18}{:>18}", "iterations", l.iterations, h.iterations);
+    println!("{:<22}{:>18}{:>18}", "termination", l.termination.as_str(), h.termination.as_str());
+    println!("{:<22}{:>18.6}{:>18.6}", "max pole radius", l.assessment.max_pole_radius, h.assessment.max_pole_radius);
+    println!();
+    println!("Huber b = {:?}", h.b);
+    println!("Huber f = {:?}", h.f);
+    println!("({:.3} s)", r.seconds);
+}
+
+pub(super) fn describe_grid(p: &Prepared) -> String {
+    let (job, ks) = (&p.job, &p.job.ks);
+    let (kmin, kmax) = ks.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &k| (a.min(k), b.max(k)));
+    format!(
+        "nB {}..{} x nF {}..{} x {} values of k in [{kmin}, {kmax}]",
+        job.nb[0],
+        job.nb[job.nb.len() - 1],
+        job.nf[0],
+        job.nf[job.nf.len() - 1],
+        ks.len()
+    )
+}
+
+/// The shard layout of `oesweep plan --shards N`: per shard its pairs, cells and estimated cost.
+pub(super) fn print_layout(plan: &Plan, n: usize) {
+    let layout = shard::layout(plan, n);
+    let total: f64 = (0..plan.pairs.len()).map(|p| shard::pair_cost(plan, p)).sum();
+    println!("shards     {n} (run each with `oesweep run JOB --shard I/{n}`, then `oesweep merge OUTPUT`)");
+    println!("{:>7} {:>6} {:>7} {:>11} {:>7}  order pairs (nB,nF)", "shard", "pairs", "cells", "est. cost", "share");
+    for (i, pairs) in layout.iter().enumerate() {
+        let cost: f64 = pairs.iter().map(|&p| shard::pair_cost(plan, p)).sum();
+        let list: Vec<String> = pairs.iter().map(|&p| format!("({},{})", plan.pairs[p].nb, plan.pairs[p].nf)).collect();
+        println!(
+            "{:>7} {:>6} {:>7} {:>11} {:>6.1}%  {}",
+            format!("{i}/{n}"),
+            pairs.len(),
+            pairs.len() * plan.ks.len(),
+            cost,
+            100.0 * cost / total.max(1.0),
+            list.join(" ")
+        );
+    }
+}
+
+pub(super) fn print_picks(selection: &reduce::Selection) {
+    for (label, pick) in [("M1 (W minima)  ", &selection.m1), ("M2 (L1C minima)", &selection.m2)] {
+        match pick {
+            Some(m) => println!(
+                "{label} OE({}, {}) k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  fit = {}",
+                m.model.nb,
+                m.model.nf,
+                m.model.k,
+                m.model.gamma,
+                m.model.criterion,
+                100.0 * m.model.l1c,
+                opt_pct(Some(m.model.score))
+            ),
+            None => println!("{label} none (no usable cell)"),
+        }
+    }
+}
+
+/// The page of a report, or its error after the summary was printed.
+pub(super) fn print_report(report: Option<Result<PathBuf>>) -> Result<()> {
+    if let Some(page) = report {
+        println!("report in {}", page?.display());
+    }
+    Ok(())
+}

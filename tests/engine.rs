@@ -1,0 +1,109 @@
+//! The whole operations through the library ([`oesweep::engine`]), without the binary: a run
+//! that resumes from a partial checkpoint, and the merge of shards, each giving the table of an
+//! uninterrupted run bit for bit (but `seconds`).
+
+mod common;
+
+use oesweep::engine::{self, MergeEnd, RunEnd, RunOptions};
+use oesweep::export::parquet::read_cells;
+use oesweep::shard::Shard;
+use oesweep::table::CellRow;
+use std::cell::Cell;
+use std::path::{Path, PathBuf};
+
+const PAIRS: usize = 3 * 3;
+const KS: usize = 4;
+
+/// Simulated piezo data (noise and spikes) and a job over a small grid writing to `out`.
+fn job(dir: &Path, out: &str) -> PathBuf {
+    if !dir.join("est.csv").exists() {
+        let noise = common::Noise { amplitude: 1.0, std: 0.05, spike_probability: 0.03, spike_range: "1,3" };
+        common::simulate(&common::piezo_system(), &dir.join("est.csv"), 3000, 1, &noise);
+    }
+    let job = serde_json::json!({
+        "name": "engine",
+        "data": {"path": "est.csv", "ts": 1e-4},
+        "grid": {"nb": [5, 7], "nf": [4, 6], "k": {"from": 0.1, "to": 2.0, "count": KS, "spacing": "log"}},
+        "output": out,
+    });
+    let p = dir.join(format!("{out}.json"));
+    std::fs::write(&p, job.to_string()).unwrap();
+    p
+}
+
+fn table(out: &Path) -> Vec<CellRow> {
+    let mut rows = read_cells(&out.join("cells.parquet")).unwrap();
+    for r in &mut rows {
+        r.seconds = 0.0;
+    }
+    rows
+}
+
+fn shard(index: usize, count: usize) -> RunOptions {
+    RunOptions { threads: 2, shard: Some(Shard { index, count }), ..Default::default() }
+}
+
+fn whole() -> RunOptions {
+    RunOptions { threads: 2, ..Default::default() }
+}
+
+/// The uninterrupted run's table.
+fn reference(dir: &Path) -> Vec<CellRow> {
+    let o = engine::run(&job(dir, "ref"), &whole(), &|_| {}).unwrap();
+    assert!(matches!(o.end, RunEnd::Merged { .. }) && o.exit_code() == 0, "{o:?}");
+    assert_eq!((o.computed, o.resumed), (PAIRS * KS, 0));
+    table(&dir.join("ref"))
+}
+
+#[test]
+fn a_run_resumes_from_a_partial_checkpoint() {
+    let dir = tempfile::tempdir().unwrap();
+    let expected = reference(dir.path());
+    let job = job(dir.path(), "out");
+    // Half the pairs done: the checkpoint a shard leaves, which a whole run resumes from.
+    let o = engine::run(&job, &shard(0, 2), &|_| {}).unwrap();
+    assert!(matches!(o.end, RunEnd::ShardSaved), "{o:?}");
+    let saved = o.cells;
+    assert!(saved > 0 && saved < PAIRS * KS);
+
+    let heard = Cell::new(None);
+    let o = engine::run(&job, &whole(), &|r| heard.set(Some((r.cells, r.ls, r.plan_cells)))).unwrap();
+    assert_eq!(heard.get(), Some((saved, saved / KS, PAIRS * KS)));
+    assert!(matches!(o.end, RunEnd::Merged { .. }), "{o:?}");
+    assert_eq!((o.resumed, o.computed), (saved, PAIRS * KS - saved));
+    assert!(!dir.path().join("out/parts").exists(), "the checkpoint is deleted after the merge");
+    assert!(table(&dir.path().join("out")) == expected, "the resumed table differs from the uninterrupted one");
+}
+
+#[test]
+fn shards_merge_into_the_uninterrupted_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let expected = reference(dir.path());
+    let job = job(dir.path(), "out");
+    let out = dir.path().join("out");
+    for i in [0, 1] {
+        assert!(matches!(engine::run(&job, &shard(i, 3), &|_| {}).unwrap().end, RunEnd::ShardSaved));
+    }
+    // One shard missing: nothing written, and the merge names the shard to run.
+    let m = engine::merge(&out, false, false).unwrap();
+    assert!(matches!(m.end, MergeEnd::Incomplete) && m.exit_code() == 1, "{m:?}");
+    assert_eq!(m.owners, Some((3, vec![2])));
+    assert!(m.missing.cells > 0 && !out.join("cells.parquet").exists());
+    // --partial writes what there is and keeps the checkpoint.
+    let m = engine::merge(&out, true, false).unwrap();
+    assert!(matches!(m.end, MergeEnd::Merged { .. }), "{m:?}");
+    assert_eq!(m.huber, PAIRS * KS - m.missing.cells);
+    assert!(out.join("parts").exists());
+
+    assert!(matches!(engine::run(&job, &shard(2, 3), &|_| {}).unwrap().end, RunEnd::ShardSaved));
+    let m = engine::merge(&out, false, false).unwrap();
+    assert!(matches!(m.end, MergeEnd::Merged { .. }) && m.exit_code() == 0, "{m:?}");
+    assert!(m.missing.is_empty() && !out.join("parts").exists());
+    assert!(table(&out) == expected, "the merged table differs from the uninterrupted one");
+    assert_eq!(
+        std::fs::read_to_string(out.join("selection.json")).unwrap(),
+        std::fs::read_to_string(dir.path().join("ref/selection.json")).unwrap()
+    );
+    // A merge job that runs twice succeeds twice.
+    assert!(matches!(engine::merge(&out, false, false).unwrap().end, MergeEnd::AlreadyMerged));
+}
