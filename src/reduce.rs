@@ -205,8 +205,8 @@ pub fn choose_basis(has_validation: bool, has_band: bool) -> FitBasis {
 }
 
 /// How a curve point is compared with its neighbours (rules 3-4).
-#[derive(Clone, Copy)]
-enum Tolerance {
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Tolerance {
     Relative(f64),
     Absolute(f64),
 }
@@ -220,8 +220,9 @@ impl Tolerance {
     }
 }
 
-/// Indices of the local minima of `values` (a curve already sorted by nF).
-fn local_minima(values: &[f64], tolerance: Tolerance) -> Vec<usize> {
+/// Indices of the local minima of `values` (a curve already sorted by nF): not above either
+/// existing neighbour beyond `tolerance` (rules 3-4).
+pub fn local_minima(values: &[f64], tolerance: Tolerance) -> Vec<usize> {
     (0..values.len())
         .filter(|&i| {
             let below_prev = i == 0 || tolerance.not_above(values[i], values[i - 1]);
@@ -231,11 +232,48 @@ fn local_minima(values: &[f64], tolerance: Tolerance) -> Vec<usize> {
         .collect()
 }
 
-/// Which curve a pick comes from (for the rule sentence).
-#[derive(Clone, Copy)]
-enum Curve {
+/// The two curves over nF: W for the M1-style pick, L1C for the M2-style pick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Curve {
     W,
     L1c,
+}
+
+impl Curve {
+    /// The curve's value at a row that takes part ([`takes_part`]; finite there).
+    pub fn value(self, r: &CellRow) -> f64 {
+        match self {
+            Curve::W => r.criterion.unwrap_or(f64::NAN),
+            Curve::L1c => r.l1c.unwrap_or(f64::NAN),
+        }
+    }
+
+    /// The local-minimum test of this curve (rule 3): relative on W, absolute on the share L1C.
+    pub fn tolerance(self, min_tolerance: f64) -> Tolerance {
+        match self {
+            Curve::W => Tolerance::Relative(min_tolerance),
+            Curve::L1c => Tolerance::Absolute(min_tolerance),
+        }
+    }
+}
+
+/// Key of a curve: (delay, nB, k index).
+pub type CurveKey = (u32, u32, Option<u32>);
+
+/// Rules 1-2: the curves over nF, one per (delay, nB, k index), of the rows that take part,
+/// sorted by nF; a repeated cell keeps its lower criterion. A BTreeMap, so the result does not
+/// depend on the order of the rows.
+pub fn curves(rows: &[CellRow]) -> BTreeMap<CurveKey, Vec<&CellRow>> {
+    let mut curves: BTreeMap<CurveKey, Vec<&CellRow>> = BTreeMap::new();
+    for r in rows.iter().filter(|r| takes_part(r)) {
+        curves.entry((r.delay, r.nb, r.k_index)).or_default().push(r);
+    }
+    for curve in curves.values_mut() {
+        // Sort by nF, duplicates by criterion, so dedup keeps the better fit of a repeated cell.
+        curve.sort_by(|a, b| a.nf.cmp(&b.nf).then(Curve::W.value(a).total_cmp(&Curve::W.value(b))));
+        curve.dedup_by_key(|r| r.nf);
+    }
+    curves
 }
 
 /// Apply rules 1-7 to a result table.
@@ -244,25 +282,13 @@ pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
     let cells = huber().count();
     let failed = huber().filter(|r| r.status == crate::table::STATUS_FAILED).count();
 
-    // Rule 2: one curve per (delay, nB, k index); BTreeMap for a row-order-independent result.
-    let mut curves: BTreeMap<(u32, u32, Option<u32>), Vec<&CellRow>> = BTreeMap::new();
-    for r in huber().filter(|r| takes_part(r)) {
-        curves.entry((r.delay, r.nb, r.k_index)).or_default().push(r);
-    }
-    for curve in curves.values_mut() {
-        // Sort by nF, duplicates by criterion, so dedup keeps the better fit of a repeated cell.
-        curve.sort_by(|a, b| a.nf.cmp(&b.nf).then(crit(a).total_cmp(&crit(b))));
-        curve.dedup_by_key(|r| r.nf);
-    }
-
     let mut w_minima = Vec::new();
     let mut l1c_minima = Vec::new();
-    for curve in curves.values() {
-        let w: Vec<f64> = curve.iter().map(|r| crit(r)).collect();
-        w_minima.extend(local_minima(&w, Tolerance::Relative(opts.min_tolerance)).into_iter().map(|i| curve[i]));
-
-        let l1c: Vec<f64> = curve.iter().map(|r| r.l1c.unwrap_or(f64::NAN)).collect();
-        l1c_minima.extend(local_minima(&l1c, Tolerance::Absolute(opts.min_tolerance)).into_iter().map(|i| curve[i]));
+    for curve in curves(rows).values() {
+        for (kind, minima) in [(Curve::W, &mut w_minima), (Curve::L1c, &mut l1c_minima)] {
+            let values: Vec<f64> = curve.iter().map(|r| kind.value(r)).collect();
+            minima.extend(local_minima(&values, kind.tolerance(opts.min_tolerance)).into_iter().map(|i| curve[i]));
+        }
     }
 
     Selection {
@@ -277,7 +303,7 @@ pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
 }
 
 /// Rule 1: does a row take part in the choice?
-fn takes_part(r: &CellRow) -> bool {
+pub fn takes_part(r: &CellRow) -> bool {
     let finite = |v: Option<f64>| v.is_some_and(f64::is_finite);
     r.method == Method::Huber
         && r.ok()
@@ -286,11 +312,6 @@ fn takes_part(r: &CellRow) -> bool {
         && finite(r.l1c)
         && finite(r.k)
         && finite(r.gamma)
-}
-
-/// Criterion of a participating row (always finite there).
-fn crit(r: &CellRow) -> f64 {
-    r.criterion.unwrap_or(f64::NAN)
 }
 
 /// Rules 5-7 on the local minima of one kind of curve.

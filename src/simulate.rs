@@ -366,9 +366,9 @@ fn fmt_f64(out: &mut impl Write, x: f64) -> std::io::Result<()> {
 }
 
 /// Writes a simulated record as CSV with header `u,y,y0`, in full precision (reading it back
-/// with [`crate::data::read_columns`] gives bit-identical values). The file is written next to
-/// its destination under a temporary name and renamed into place, so a reader never sees half a
-/// file; a missing parent folder is created.
+/// with [`crate::data::read_columns`] gives bit-identical values). Written atomically
+/// ([`crate::export::write_atomically`]), so a reader never sees half a file; a missing parent
+/// folder is created.
 pub fn write_csv(path: &Path, rec: &SimRecord) -> Result<()> {
     let fail = |what: &str, e: std::io::Error| Error::output(path, format!("{what}: {e}"));
     let n = rec.u.len();
@@ -383,30 +383,21 @@ pub fn write_csv(path: &Path, rec: &SimRecord) -> Result<()> {
         _ => Path::new("."),
     };
     fs::create_dir_all(dir).map_err(|e| fail("cannot create the folder", e))?;
-    let name = path.file_name().ok_or_else(|| Error::output(path, "not a file name"))?;
-    let tmp = dir.join(format!(".{}.{}.tmp", name.to_string_lossy(), std::process::id()));
-
-    let write = || -> std::io::Result<()> {
-        let mut w = BufWriter::new(fs::File::create(&tmp)?);
-        w.write_all(b"u,y,y0\n")?;
-        for i in 0..n {
-            fmt_f64(&mut w, rec.u[i])?;
-            w.write_all(b",")?;
-            fmt_f64(&mut w, rec.y[i])?;
-            w.write_all(b",")?;
-            fmt_f64(&mut w, rec.y0[i])?;
-            w.write_all(b"\n")?;
-        }
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()
-    };
-    if let Err(e) = write() {
-        let _ = fs::remove_file(&tmp);
-        return Err(fail("cannot write", e));
-    }
-    fs::rename(&tmp, path).map_err(|e| {
-        let _ = fs::remove_file(&tmp);
-        fail("cannot move the finished file into place", e)
+    crate::export::write_atomically(path, |file| {
+        let mut w = BufWriter::new(file);
+        let mut rows = || -> std::io::Result<()> {
+            w.write_all(b"u,y,y0\n")?;
+            for i in 0..n {
+                fmt_f64(&mut w, rec.u[i])?;
+                w.write_all(b",")?;
+                fmt_f64(&mut w, rec.y[i])?;
+                w.write_all(b",")?;
+                fmt_f64(&mut w, rec.y0[i])?;
+                w.write_all(b"\n")?;
+            }
+            w.flush()
+        };
+        rows().map_err(|e| format!("cannot write: {e}"))
     })
 }
 

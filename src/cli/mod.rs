@@ -61,24 +61,6 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
 }
 
 fn run_simulate(a: &SimulateArgs) -> Result<u8> {
-    let (lo, hi) = a.outlier_range;
-    if a.n == 0 {
-        return Err(Error::Invalid("--n must be at least 1".into()));
-    }
-    if !(a.noise_std >= 0.0 && a.noise_std.is_finite()) {
-        return Err(Error::Invalid(format!("--noise-std must be >= 0, got {}", a.noise_std)));
-    }
-    if !(0.0..=1.0).contains(&a.outlier_prob) {
-        return Err(Error::Invalid(format!("--outlier-prob must be in [0, 1], got {}", a.outlier_prob)));
-    }
-    if !(lo >= 0.0 && hi >= lo && hi.is_finite()) {
-        return Err(Error::Invalid(format!("--outlier-range {lo},{hi}: need 0 <= MIN <= MAX")));
-    }
-    if let Some(dof) = a.student_t
-        && (dof <= 0.0 || dof.is_nan())
-    {
-        return Err(Error::Invalid(format!("--student-t needs positive degrees of freedom, got {dof}")));
-    }
     let opts = simulate::SimOptions {
         n: a.n,
         bits: a.bits,
@@ -89,7 +71,9 @@ fn run_simulate(a: &SimulateArgs) -> Result<u8> {
             Some(dof) => simulate::NoiseKind::StudentT { dof },
             None => simulate::NoiseKind::Gaussian,
         },
-        outliers: (a.outlier_prob > 0.0).then_some(simulate::Outliers {
+        // Always given, so that the library checks the range whatever the probability; with
+        // probability 0 no spike is added (the spikes have their own random stream).
+        outliers: Some(simulate::Outliers {
             probability: a.outlier_prob,
             min: a.outlier_range.0,
             max: a.outlier_range.1,

@@ -4,7 +4,7 @@
 use super::plot::*;
 use crate::estimate::fit_percent;
 use crate::oe::{freq_response, simulate_vec};
-use crate::reduce::{Candidate, FitBasis, ReduceOptions, Selection, select};
+use crate::reduce::{self, Candidate, Curve, FitBasis, ReduceOptions, Selection, local_minima, select};
 use crate::spectral::SpectralEstimate;
 use crate::table::{CellRow, Method};
 use plotters::prelude::*;
@@ -46,46 +46,14 @@ pub fn basis_column(basis: FitBasis) -> (&'static str, fn(&CellRow) -> Option<f6
     }
 }
 
-/// A Huber row that takes part in the model choice (the rows of the W and L1C curves).
-fn usable(r: &CellRow) -> bool {
-    r.method == Method::Huber
-        && r.ok()
-        && r.k_index.is_some()
-        && r.criterion.is_some_and(f64::is_finite)
-        && r.l1c.is_some_and(f64::is_finite)
-}
-
-/// The curves over nF at one k index, one per nB, sorted by nF; a repeated cell keeps its lower
-/// criterion (the same rule as the reducer, so the marked minima are the reducer's).
+/// The curves over nF at one k index, one per nB: the reducer's curves
+/// ([`crate::reduce::curves`]), so the marked minima are the reducer's.
 fn curves_at(rows: &[CellRow], k_index: u32) -> BTreeMap<u32, Vec<&CellRow>> {
-    let mut curves: BTreeMap<u32, Vec<&CellRow>> = BTreeMap::new();
-    for r in rows.iter().filter(|r| usable(r) && r.k_index == Some(k_index)) {
-        curves.entry(r.nb).or_default().push(r);
-    }
-    for c in curves.values_mut() {
-        c.sort_by(|a, b| a.nf.cmp(&b.nf).then(a.criterion.unwrap().total_cmp(&b.criterion.unwrap())));
-        c.dedup_by_key(|r| r.nf);
-    }
-    curves
-}
-
-/// Indices of the local minima of a curve (reducer rules 3-4): not above either existing
-/// neighbour by more than `tol`, relative or absolute.
-pub fn local_minima(values: &[f64], relative: bool, tol: f64) -> Vec<usize> {
-    let not_above = |v: f64, n: f64| if relative { v <= n * (1.0 + tol) } else { v <= n + tol };
-    (0..values.len())
-        .filter(|&i| {
-            (i == 0 || not_above(values[i], values[i - 1]))
-                && (i + 1 == values.len() || not_above(values[i], values[i + 1]))
-        })
+    reduce::curves(rows)
+        .into_iter()
+        .filter(|((_, _, k), _)| *k == Some(k_index))
+        .map(|((_, nb, _), c)| (nb, c))
         .collect()
-}
-
-/// Which validation curve a figure shows.
-#[derive(Clone, Copy, PartialEq, Eq)]
-pub enum Curve {
-    W,
-    L1c,
 }
 
 /// W (or L1C) as a function of nF, one line per nB, at one k, with the local minima ringed and
@@ -100,10 +68,7 @@ pub fn curve_figure(
     file: &str,
 ) -> std::result::Result<Figure, String> {
     let curves = curves_at(rows, k_index);
-    let raw = |r: &CellRow| match curve {
-        Curve::W => r.criterion.unwrap(),
-        Curve::L1c => r.l1c.unwrap(),
-    };
+    let raw = |r: &CellRow| curve.value(r);
     // W can span decades over nB when a small order misses a resonance: then plot log10 W.
     let all: Vec<f64> = curves.values().flatten().map(|r| raw(r)).collect();
     let (lo, hi) = padded_range(all.iter().copied(), 0.0).unwrap_or((0.0, 1.0));
@@ -149,7 +114,7 @@ pub fn curve_figure(
             chart.draw_series(LineSeries::new(pts.iter().copied(), colour.stroke_width(2)))?;
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, colour.filled())))?;
             let values: Vec<f64> = c.iter().map(|r| raw(r)).collect();
-            let minima = local_minima(&values, curve == Curve::W, min_tolerance);
+            let minima = local_minima(&values, curve.tolerance(min_tolerance));
             minima_count += minima.len();
             chart.draw_series(minima.iter().map(|&m| Circle::new(pts[m], 7, colour.stroke_width(2))))?;
             entries.push((Mark::Line { colour, width: 2, dashed: false }, format!("nB = {nb}")));
@@ -394,7 +359,12 @@ pub fn picks_by_k_figure(
     for (i, &k) in ks.iter().enumerate() {
         let subset: Vec<CellRow> = rows.iter().filter(|r| r.k_index == Some(i as u32)).cloned().collect();
         let sel = select(&subset, &opts);
-        let best = subset.iter().filter(|r| usable(r)).filter_map(fit_of).filter(|v| v.is_finite()).reduce(f64::max);
+        let best = subset
+            .iter()
+            .filter(|r| reduce::takes_part(r))
+            .filter_map(fit_of)
+            .filter(|v| v.is_finite())
+            .reduce(f64::max);
         per_k.push(KPicks { x: k.log10(), m1: sel.m1.map(|p| p.model), m2: sel.m2.map(|p| p.model), best });
     }
     let (mut klo, mut khi) = padded_range(per_k.iter().map(|p| p.x), 0.05).unwrap_or((-1.0, 0.0));
@@ -893,14 +863,6 @@ pub fn output_figure(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn minima_follow_the_reducer_rules() {
-        assert_eq!(local_minima(&[5.0, 4.0, 3.0, 4.0, 5.0], true, 1e-3), vec![2]);
-        assert_eq!(local_minima(&[3.0, 3.002, 3.0, 5.0], true, 1e-3), vec![0, 1, 2]);
-        assert_eq!(local_minima(&[0.5, 0.3, 0.302, 0.6], false, 1e-3), vec![1]);
-        assert_eq!(local_minima(&[7.0], true, 1e-3), vec![0]);
-    }
 
     #[test]
     fn heat_map_labels_resolve_the_spread() {
