@@ -38,7 +38,7 @@ pub fn simulate_filtered(
     yhat: &mut [f64],
     xy: &mut [f64],
 ) {
-    kernels::simulate_filtered(f, b, delay, u, xu, yhat, xy)
+    kernels::simulate_filtered(b, f, delay, u, xu, yhat, xy)
 }
 
 /// Simulated output (= one-step predictor of an OE model), zero initial conditions.
