@@ -1,0 +1,164 @@
+//! Bode plots of the picks against the spectral estimate.
+
+use super::super::plot::*;
+use super::{Figure, Picked};
+use crate::oe::freq_response;
+use crate::spectral::SpectralEstimate;
+use plotters::prelude::*;
+use std::f64::consts::PI;
+
+/// Wrap an angle in degrees into (-180, 180].
+fn wrap180(d: f64) -> f64 {
+    let w = d - 360.0 * (d / 360.0).round();
+    if w <= -180.0 { w + 360.0 } else { w }
+}
+
+/// Bode magnitude (dB) and phase (deg) of one pick against the Welch estimate, with the fit band
+/// shaded and the coherence below (paper Figs. 11 and 13).
+pub fn bode_figure(
+    est: &SpectralEstimate,
+    band: Option<[f64; 2]>,
+    pick: Picked<'_>,
+    file: &str,
+) -> std::result::Result<Figure, String> {
+    let m = &pick.model;
+    let bins = est.freq_hz.len();
+    let nyquist = 0.5 / est.ts;
+    // Four model points per Welch bin; index 4 k is bin k.
+    const REFINE: usize = 4;
+    let fine = (bins - 1) * REFINE + 1;
+    let rad_per_fine = PI / (fine - 1) as f64;
+    let mut mag = Vec::with_capacity(fine);
+    let mut phase = Vec::with_capacity(fine);
+    let mut prev = 0.0;
+    for j in 0..fine {
+        let (re, im) = freq_response(&m.b, &m.f, m.delay as usize, rad_per_fine * j as f64);
+        mag.push(20.0 * re.hypot(im).log10());
+        let p = im.atan2(re).to_degrees();
+        // Unwrap along frequency: the model's phase is smooth, so each step is well below 180.
+        let p = if j == 0 { p } else { prev + wrap180(p - prev) };
+        phase.push(p);
+        prev = p;
+    }
+    let freq_fine = |j: usize| nyquist * j as f64 / (fine - 1) as f64;
+    // The estimate's phase is drawn on the model's branch (within ±180° of it), so a 360° jump at
+    // one noisy bin cannot offset the rest of the curve as a plain unwrap would.
+    let mut welch: Vec<(f64, f64, f64, f64)> = Vec::new();
+    for k in 0..bins {
+        let (re, im) = (est.re[k], est.im[k]);
+        if re.is_finite() && im.is_finite() {
+            let p = im.atan2(re).to_degrees();
+            let reference = phase[k * REFINE];
+            welch.push((
+                est.freq_hz[k],
+                20.0 * re.hypot(im).log10(),
+                reference + wrap180(p - reference),
+                est.coherence[k],
+            ));
+        }
+    }
+    let mag_values = mag.iter().copied().chain(welch.iter().map(|w| w.1)).filter(|v| v.is_finite());
+    let (mut mlo, mhi) = padded_range(mag_values, 0.05).unwrap_or((-60.0, 0.0));
+    // Notches of the estimate between PRBS lines can reach -200 dB; keep 100 dB below the top.
+    mlo = mlo.max(mhi - 100.0);
+    let (plo, phi) =
+        padded_range(phase.iter().copied().chain(welch.iter().map(|w| w.2)), 0.05).unwrap_or((-180.0, 180.0));
+    let band_text = band.map(|[a, b]| format!("{} to {} Hz", short(a), short(b)));
+    let title_text =
+        format!("Frequency response of {} against the Welch estimate (cf. paper Figs. 11, 13)", pick.label());
+    let svg = render((1000, 860), |root| {
+        let body = title(root, &title_text, 17.0)?;
+        let (head, body) = body.split_vertically(40);
+        let (mag_area, rest) = body.split_vertically(350);
+        let (phase_area, coh_area) = rest.split_vertically(260);
+        let fx = || axis(0.0, nyquist, nice_ticks(0.0, nyquist, 10));
+        let panels = [
+            (&mag_area, mlo, mhi, "|G| [dB, output unit per input unit]", nice_ticks(mlo, mhi, 7), 20),
+            (&phase_area, plo, phi, "phase [deg]", phase_ticks(plo, phi), 20),
+            (&coh_area, 0.0, 1.05, "coherence", vec![0.0, 0.5, 1.0], 46),
+        ];
+        for (i, (area, lo, hi, desc, ticks, xl)) in panels.into_iter().enumerate() {
+            let mut chart = ChartBuilder::on(area)
+                .margin_left(10)
+                .margin_right(20)
+                .margin_top(6)
+                .x_label_area_size(xl)
+                .y_label_area_size(84)
+                .build_cartesian_2d(fx(), axis(lo, hi, ticks))?;
+            let mut mesh = chart.configure_mesh();
+            mesh.y_desc(desc)
+                .label_style(text(13.0))
+                .axis_desc_style(text(14.0))
+                .bold_line_style(GRID_COLOUR)
+                .light_line_style(TRANSPARENT);
+            if i == 2 {
+                mesh.x_desc("frequency [Hz]");
+            } else {
+                // Shared frequency axis: numbers only under the last panel.
+                mesh.x_label_formatter(&|_| String::new());
+            }
+            mesh.draw()?;
+            if let Some([a, b]) = band {
+                chart
+                    .draw_series(std::iter::once(Rectangle::new([(a, lo), (b, hi)], BAND_COLOUR.mix(0.18).filled())))?;
+            }
+            match i {
+                0 => {
+                    chart.draw_series(welch.iter().map(|w| Circle::new((w.0, w.1), 2, MEASURED.filled())))?;
+                    chart.draw_series(LineSeries::new(
+                        (0..fine).map(|j| (freq_fine(j), mag[j])).filter(|p| p.1.is_finite()),
+                        pick.colour.stroke_width(2),
+                    ))?;
+                }
+                1 => {
+                    chart.draw_series(welch.iter().map(|w| Circle::new((w.0, w.2), 2, MEASURED.filled())))?;
+                    chart.draw_series(LineSeries::new(
+                        (0..fine).map(|j| (freq_fine(j), phase[j])),
+                        pick.colour.stroke_width(2),
+                    ))?;
+                }
+                _ => {
+                    chart.draw_series(welch.iter().map(|w| Circle::new((w.0, w.3), 2, MEASURED.filled())))?;
+                }
+            }
+        }
+        let mut entries = vec![
+            (Mark::Line { colour: pick.colour, width: 2, dashed: false }, pick.label()),
+            (Mark::Dot(MEASURED), format!("Welch estimate S_yu/S_uu ({}-sample Hann segments)", est.segment)),
+        ];
+        if let Some(t) = &band_text {
+            entries.push((Mark::Patch(BAND_COLOUR.mix(0.35)), format!("fit band {t}")));
+        }
+        legend(&head, 90, 4, 900, &entries, 14.0)?;
+        Ok(())
+    })?;
+    let caption = format!(
+        "Magnitude and phase of {} (line) and the nonparametric Welch estimate of the estimation record \
+         (dots), with the magnitude-squared coherence below: where it is low the estimate itself is \
+         unreliable. {}The estimate's phase is drawn within ±180° of the model's. fit_band = {}.",
+        pick.label(),
+        band_text.map(|t| format!("Shaded: the band {t} of fit_band. ")).unwrap_or_default(),
+        m.fit_band.map(|v| format!("{v:.2} %")).unwrap_or("n/a (no band)".into()),
+    );
+    Ok(Figure { file: file.into(), alt: title_text, caption, svg })
+}
+
+/// Phase ticks: multiples of 90, 180, 360 ... degrees, about 6 of them.
+fn phase_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let step =
+        [45.0, 90.0, 180.0, 360.0, 720.0, 1440.0, 2880.0].into_iter().find(|s| (hi - lo) / s <= 7.0).unwrap_or(5760.0);
+    ((lo / step).ceil() as i64..=(hi / step).floor() as i64).map(|i| i as f64 * step).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn phase_helpers() {
+        assert_eq!(wrap180(190.0), -170.0);
+        assert_eq!(wrap180(-180.0), 180.0);
+        assert_eq!(wrap180(540.0), 180.0);
+        assert_eq!(phase_ticks(-700.0, 10.0), vec![-540.0, -360.0, -180.0, 0.0]);
+    }
+}

@@ -1,0 +1,56 @@
+//! The report's figures: each function prepares the numbers of one figure and draws it as SVG.
+//! What each figure shows, and why, is documented in the parent module; one file per figure.
+
+use super::plot::*;
+use crate::reduce::{Candidate, FitBasis};
+use crate::table::CellRow;
+use plotters::prelude::*;
+
+mod bode;
+mod curve;
+mod heat;
+mod output;
+mod picks_k;
+mod residuals;
+
+pub use bode::bode_figure;
+pub use curve::curve_figure;
+pub use heat::heat_figure;
+pub use output::output_figure;
+pub use picks_k::picks_by_k_figure;
+pub use residuals::residual_figure;
+
+/// One rendered figure and the text the page shows with it.
+pub struct Figure {
+    /// File name beside report.html.
+    pub file: String,
+    /// Alternative text of the image.
+    pub alt: String,
+    /// Caption (plain text; the page escapes it).
+    pub caption: String,
+    pub svg: String,
+}
+
+/// A pick as the figures need it: the model, a short name and its colour.
+#[derive(Clone, Copy)]
+pub struct Picked<'a> {
+    pub name: &'static str,
+    pub model: &'a Candidate,
+    pub colour: RGBColor,
+}
+
+impl Picked<'_> {
+    /// "M1 OE(9,9), k = 0.05".
+    pub fn label(&self) -> String {
+        format!("{} OE({},{}), k = {}", self.name, self.model.nb, self.model.nf, short(self.model.k))
+    }
+}
+
+/// The fit column a basis names, with its label.
+pub fn basis_column(basis: FitBasis) -> (&'static str, fn(&CellRow) -> Option<f64>) {
+    match basis {
+        FitBasis::Validation => ("fit_val", |r| r.fit_val),
+        FitBasis::Band => ("fit_band", |r| r.fit_band),
+        FitBasis::Estimation => ("fit", |r| r.fit),
+    }
+}
