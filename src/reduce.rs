@@ -73,6 +73,15 @@ impl FitBasis {
         }
     }
 
+    /// The table column of this basis.
+    pub fn column(self) -> &'static str {
+        match self {
+            FitBasis::Validation => "fit_val",
+            FitBasis::Band => "fit_band",
+            FitBasis::Estimation => "fit",
+        }
+    }
+
     /// Human-readable name used in [`Pick::rule`].
     pub fn describe(self) -> &'static str {
         match self {

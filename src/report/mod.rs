@@ -277,7 +277,7 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
     let m1 = sel.m1.as_ref().map(|p| Picked { name: "M1", model: &p.model, colour: plot::M1_COLOUR });
     let m2 = sel.m2.as_ref().map(|p| Picked { name: "M2", model: &p.model, colour: plot::M2_COLOUR });
     let picks: Vec<Picked> = m1.into_iter().chain(m2).collect();
-    let (basis_name, _) = figures::basis_column(sel.basis);
+    let basis_name = sel.basis.column();
     let mut sections = Vec::new();
 
     // --- Picks table ---
@@ -502,7 +502,7 @@ fn header(s: &Sweep) -> html::Header {
         "model choice".into(),
         format!(
             "ranked by <code>{}</code>; local-minimum tolerance {}, ties within {} points",
-            figures::basis_column(s.selection.basis).0,
+            s.selection.basis.column(),
             s.selection.min_tolerance,
             s.selection.fit_tolerance
         ),

@@ -1,7 +1,7 @@
 //! Heat maps of a quantity over (nB, nF) at one k.
 
 use super::super::plot::*;
-use super::{Figure, Picked, basis_column};
+use super::{Figure, Picked};
 use crate::reduce::FitBasis;
 use crate::table::{CellRow, Method};
 use plotters::prelude::*;
@@ -22,7 +22,7 @@ pub fn heat_figure(
     let nfs: Vec<u32> = cells.iter().map(|r| r.nf).collect();
     let (nb_lo, nb_hi) = (nbs.iter().copied().min().unwrap_or(1), nbs.iter().copied().max().unwrap_or(1));
     let (nf_lo, nf_hi) = (nfs.iter().copied().min().unwrap_or(0), nfs.iter().copied().max().unwrap_or(0));
-    let (fit_name, fit_of) = basis_column(basis);
+    let (fit_name, fit_of) = (basis.column(), move |r: &CellRow| basis.score(r));
 
     // (title, value of a row, colour-scale direction: true when low is good).
     type Value = Box<dyn Fn(&CellRow) -> Option<f64>>;

@@ -2,8 +2,7 @@
 //! What each figure shows, and why, is documented in the parent module; one file per figure.
 
 use super::plot::*;
-use crate::reduce::{Candidate, FitBasis};
-use crate::table::CellRow;
+use crate::reduce::Candidate;
 use plotters::prelude::*;
 
 mod bode;
@@ -43,14 +42,5 @@ impl Picked<'_> {
     /// "M1 OE(9,9), k = 0.05".
     pub fn label(&self) -> String {
         format!("{} OE({},{}), k = {}", self.name, self.model.nb, self.model.nf, short(self.model.k))
-    }
-}
-
-/// The fit column a basis names, with its label.
-pub fn basis_column(basis: FitBasis) -> (&'static str, fn(&CellRow) -> Option<f64>) {
-    match basis {
-        FitBasis::Validation => ("fit_val", |r| r.fit_val),
-        FitBasis::Band => ("fit_band", |r| r.fit_band),
-        FitBasis::Estimation => ("fit", |r| r.fit),
     }
 }

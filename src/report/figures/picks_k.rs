@@ -1,7 +1,7 @@
 //! The picks' W, L1C and fit as functions of k.
 
 use super::super::plot::*;
-use super::{Figure, basis_column};
+use super::Figure;
 use crate::reduce::{self, Candidate, ReduceOptions, Selection, select};
 use crate::table::CellRow;
 use plotters::prelude::*;
@@ -27,7 +27,7 @@ pub fn picks_by_k_figure(
         min_tolerance: selection.min_tolerance,
         fit_tolerance: selection.fit_tolerance,
     };
-    let (fit_name, fit_of) = basis_column(selection.basis);
+    let (fit_name, fit_of) = (selection.basis.column(), move |r: &CellRow| selection.basis.score(r));
     // select() on the rows of one k applies exactly the reducer's rules to that k alone.
     let mut per_k: Vec<KPicks> = Vec::new();
     for (i, &k) in ks.iter().enumerate() {
