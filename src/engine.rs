@@ -12,7 +12,7 @@
 //! and stops once its rows are saved; [`merge`] combines the shards.
 
 use crate::checkpoint::{self, Manifest, StopOnSignal, Writer};
-use crate::data::{self, Record};
+use crate::data::{self, ColumnRef, ReadOptions, Record};
 use crate::error::{Error, Result};
 use crate::estimate::{self, HuberFit, Judge, LsFit, Problem, SolverOptions, Workspace};
 use crate::export;
@@ -436,11 +436,16 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
 #[derive(Clone, Debug)]
 pub struct FitRequest {
     pub data: PathBuf,
-    pub u: String,
-    pub y: String,
+    pub u: ColumnRef,
+    pub y: ColumnRef,
+    /// Data rows of the estimation record (default: all).
+    pub rows: Option<[usize; 2]>,
+    /// Validation file; with `val_rows` and no file, the estimation file.
     pub validation: Option<PathBuf>,
     /// Validation output column (default: see [`data::validation_column`]).
-    pub val_y: Option<String>,
+    pub val_y: Option<ColumnRef>,
+    /// Data rows of the validation record (default: all).
+    pub val_rows: Option<[usize; 2]>,
     pub nb: usize,
     pub nf: usize,
     pub k: f64,
@@ -477,6 +482,11 @@ impl FitRequest {
         if self.nb == 0 {
             return Err(Error::Invalid("--nb must be at least 1".into()));
         }
+        for (flag, rows) in [("--rows", self.rows), ("--val-rows", self.val_rows)] {
+            if let Some(r) = rows {
+                data::check_rows(r).map_err(|m| bad(flag, m))?;
+            }
+        }
         job::check_k(self.k).map_err(|m| bad("--k", m))?;
         if let Some(ts) = self.ts {
             job::check_sampling_period(ts).map_err(|m| bad("--ts", m))?;
@@ -497,12 +507,15 @@ impl FitRequest {
 /// Fit one model (see [`FitRequest`]).
 pub fn fit(req: &FitRequest) -> Result<FitReport> {
     req.check()?;
-    let est = data::read_record(&req.data, &req.u, &req.y)?;
+    let opts = ReadOptions { rows: req.rows, ..ReadOptions::default() };
+    let est = data::read_record_with(&req.data, &req.u, &req.y, &opts)?;
     data::check_for_model(&est, req.nb, req.nf, req.delay)?;
-    let val: Option<Record> = match &req.validation {
+    let val_path = req.validation.clone().or_else(|| req.val_rows.map(|_| req.data.clone()));
+    let val: Option<Record> = match &val_path {
         Some(p) => {
-            let col = data::validation_column(p, req.val_y.as_deref(), &req.y)?;
-            let v = data::read_record(p, &req.u, &col)?;
+            let opts = ReadOptions { rows: req.val_rows, ..ReadOptions::default() };
+            let col = data::validation_column(p, req.val_y.as_ref(), &req.y, &opts)?;
+            let v = data::read_record_with(p, &req.u, &col, &opts)?;
             data::check_for_model(&v, req.nb, req.nf, req.delay)?;
             Some(v)
         }
@@ -529,7 +542,7 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
     Ok(FitReport {
         data: req.data.clone(),
         n: est.u.len(),
-        validation: req.validation.clone(),
+        validation: val_path,
         validation_column: val.as_ref().map(|v| v.y_name.clone()),
         nb: req.nb,
         nf: req.nf,

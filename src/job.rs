@@ -5,7 +5,7 @@
 //! its logarithmic twin), never by repeated float addition, so the same job always gives the
 //! same k values bit for bit. Every field, default and allowed range is documented in README.
 
-use crate::data::{self, Record};
+use crate::data::{self, ColumnRef, Delimiter, Header, ReadOptions, Record};
 use crate::error::{Error, Result};
 use crate::estimate::{HuberHessian, SolverOptions};
 use serde::{Deserialize, Serialize};
@@ -20,23 +20,54 @@ pub const MAX_ORDER: usize = 60;
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DataSpec {
-    /// CSV or Parquet file.
-    pub path: PathBuf,
-    /// Input column (default "u").
-    #[serde(default = "default_u")]
-    pub u: String,
-    /// Output column. Default: "y" for the estimation record; for the validation record
-    /// "y0" (noise-free output written by `oesweep simulate`) when the file has it, else "y".
+    /// Data file (text, Parquet or MAT). Required for the estimation record; the validation
+    /// record defaults to the estimation record's file (then `rows` tells them apart).
     #[serde(default)]
-    pub y: Option<String>,
+    pub path: PathBuf,
+    /// Input column: a name, or a 1-based position (default "u"; for the validation record,
+    /// the estimation record's).
+    #[serde(default)]
+    pub u: Option<ColumnRef>,
+    /// Output column. Default: "y" for the estimation record; for the validation record
+    /// "y0" (noise-free output written by `oesweep simulate`) when the file has it, else the
+    /// estimation record's.
+    #[serde(default)]
+    pub y: Option<ColumnRef>,
     /// Sampling period in seconds (required for the estimation record; the validation
     /// record's, when given, must be equal).
     #[serde(default)]
     pub ts: Option<f64>,
+    /// Text files: `","`, `";"`, `"tab"` or `"whitespace"`; default: sniffed from the file.
+    #[serde(default)]
+    pub delimiter: Option<String>,
+    /// Text files: `true`, `false` or `"auto"` (default; a first line of numbers is data).
+    /// The validation record defaults to the estimation record's setting.
+    #[serde(default)]
+    pub header: Option<Header>,
+    /// Data rows `[first, last]` (1-based, inclusive; the header is not a row). Default: all.
+    #[serde(default)]
+    pub rows: Option<[usize; 2]>,
 }
 
-fn default_u() -> String {
-    "u".into()
+impl DataSpec {
+    /// The reader's options (the spec is checked by [`load`]).
+    pub fn read_options(&self) -> ReadOptions {
+        ReadOptions {
+            delimiter: self.delimiter.as_deref().and_then(|d| Delimiter::parse(d).ok()),
+            header: self.header.unwrap_or_default(),
+            rows: self.rows,
+        }
+    }
+
+    /// The input column (validated specs always have one).
+    pub fn u_col(&self) -> ColumnRef {
+        self.u.clone().unwrap_or_else(|| ColumnRef::name("u"))
+    }
+
+    /// The output column (validated specs always have one).
+    pub fn y_col(&self) -> ColumnRef {
+        self.y.clone().unwrap_or_else(|| ColumnRef::name("y"))
+    }
 }
 
 /// k values: an explicit list or a generated range.
@@ -278,6 +309,22 @@ pub fn check_band(lo: f64, hi: f64, ts: f64) -> std::result::Result<(), String> 
     }
 }
 
+/// The reader fields of a data spec (`which` is "data" or "validation"): (field, message).
+fn check_data_spec(d: &DataSpec, which: &str) -> std::result::Result<(), (String, String)> {
+    if let Some(delim) = &d.delimiter {
+        Delimiter::parse(delim).map_err(|m| (format!("{which}.delimiter"), m))?;
+    }
+    if let Some(rows) = d.rows {
+        data::check_rows(rows).map_err(|m| (format!("{which}.rows"), m))?;
+    }
+    for (name, c) in [("u", &d.u), ("y", &d.y)] {
+        if c == &Some(ColumnRef::Position(0)) {
+            return Err((format!("{which}.{name}"), "column position 0: positions count from 1".into()));
+        }
+    }
+    Ok(())
+}
+
 /// `p` relative to `base`, with `a/../` folded lexically so messages show readable paths.
 fn resolve(base: &Path, p: &Path) -> PathBuf {
     use std::path::Component;
@@ -322,14 +369,37 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     if job.name.trim().is_empty() {
         return Err(bad("name", "must not be empty".into()));
     }
+    if job.data.path.as_os_str().is_empty() {
+        return Err(bad("data.path", "missing: the data file is required".into()));
+    }
     job.data.path = resolve(&base, &job.data.path);
-    job.data.y.get_or_insert_with(|| "y".into());
+    job.data.u.get_or_insert_with(|| ColumnRef::name("u"));
+    job.data.y.get_or_insert_with(|| ColumnRef::name("y"));
+    check_data_spec(&job.data, "data").map_err(|(f, m)| bad(&f, m))?;
     match job.data.ts {
         Some(ts) => check_sampling_period(ts).map_err(|m| bad("data.ts", m))?,
         None => return Err(bad("data.ts", "missing: the sampling period in seconds is required".into())),
     }
     if let Some(v) = job.validation.as_mut() {
-        v.path = resolve(&base, &v.path);
+        // The usual split of one experiment: same file and layout, other rows.
+        if v.path.as_os_str().is_empty() {
+            if v.rows.is_none() {
+                return Err(bad(
+                    "validation",
+                    "give its 'path', or 'rows' of the estimation file (the validation would be the estimation record)"
+                        .into(),
+                ));
+            }
+            v.path = job.data.path.clone();
+        } else {
+            v.path = resolve(&base, &v.path);
+        }
+        v.u.get_or_insert_with(|| job.data.u_col());
+        if v.delimiter.is_none() && v.path == job.data.path {
+            v.delimiter = job.data.delimiter.clone();
+        }
+        v.header.get_or_insert(job.data.header.unwrap_or_default());
+        check_data_spec(v, "validation").map_err(|(f, m)| bad(&f, m))?;
         if let Some(ts) = v.ts {
             let ets = job.data.ts.unwrap();
             check_sampling_period(ts).map_err(|m| bad("validation.ts", m))?;
@@ -479,22 +549,35 @@ pub struct Inputs {
 /// Read the job's data files and check them against the largest orders of the grid.
 /// Fills in the validation output column actually used.
 pub fn load_inputs(vj: &mut ValidJob) -> Result<Inputs> {
-    let d = &vj.job.data;
-    let est = data::read_record(&d.path, &d.u, d.y.as_deref().unwrap_or("y"))?;
     let (nb_max, nf_max) = (*vj.nb.last().unwrap(), *vj.nf.last().unwrap());
-    data::check_for_model(&est, nb_max, nf_max, vj.job.delay)?;
-    let val = match vj.job.validation.as_mut() {
+    let delay_max = vj.job.delay;
+    let (est, val) = read_records(&vj.job.data, vj.job.validation.as_mut())?;
+    data::check_for_model(&est, nb_max, nf_max, delay_max)?;
+    if let Some(rec) = &val {
+        data::check_for_model(rec, nb_max, nf_max, delay_max)?;
+    }
+    Ok(Inputs { est, val })
+}
+
+/// The records a validated job names, read as the job says (the one home of that, for the
+/// run and the report); fills in the validation output column actually used and its
+/// sampling period.
+pub fn read_records(data: &DataSpec, validation: Option<&mut DataSpec>) -> Result<(Record, Option<Record>)> {
+    let est = data::read_record_with(&data.path, &data.u_col(), &data.y_col(), &data.read_options())?;
+    let val = match validation {
         Some(v) => {
-            let col = data::validation_column(&v.path, v.y.as_deref(), "y")?;
-            let rec = data::read_record(&v.path, &v.u, &col)?;
-            data::check_for_model(&rec, nb_max, nf_max, vj.job.delay)?;
+            let opts = v.read_options();
+            let col = data::validation_column(&v.path, v.y.as_ref(), &data.y_col(), &opts)?;
+            let rec = data::read_record_with(&v.path, &v.u_col(), &col, &opts)?;
             v.y = Some(col);
-            v.ts.get_or_insert(vj.job.data.ts.unwrap());
+            if let Some(ts) = data.ts {
+                v.ts.get_or_insert(ts);
+            }
             Some(rec)
         }
         None => None,
     };
-    Ok(Inputs { est, val })
+    Ok((est, val))
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use oesweep::data::{Record, check_for_model, column_names, read_columns, read_record};
+use oesweep::data::{ReadOptions, Record, check_for_model, column_names, read_columns, read_record};
 use polars::prelude::{Column, DataFrame, ParquetWriter};
 use tempfile::TempDir;
 
@@ -43,7 +43,7 @@ fn missing_file() {
 
 #[test]
 fn empty_file() {
-    csv_err("empty.csv", "", "file is empty (expected a header row with columns u, y)");
+    csv_err("empty.csv", "", "file is empty");
     csv_err("blank.csv", "\n  \r\n", "file is empty");
 }
 
@@ -97,7 +97,7 @@ fn same_input_and_output_column() {
 #[test]
 fn csv_reads_values_and_names() {
     let (_dir, p) = csv("ok.csv", "t, u ,y\r\n0,1.5,-2\r\n1,2.5e-3,3\r\n");
-    assert_eq!(column_names(&p).unwrap(), vec!["t", "u", "y"]);
+    assert_eq!(column_names(&p, &ReadOptions::default()).unwrap(), vec!["t", "u", "y"]);
     let r = read_record(&p, "u", "y").unwrap();
     assert_eq!(r.u, vec![1.5, 2.5e-3]);
     assert_eq!(r.y, vec![-2.0, 3.0]);
@@ -130,7 +130,7 @@ fn parquet_roundtrip() {
             Column::new("y".into(), y.clone()),
         ],
     );
-    assert_eq!(column_names(&p).unwrap(), vec!["note", "u", "k", "y"]);
+    assert_eq!(column_names(&p, &ReadOptions::default()).unwrap(), vec!["note", "u", "k", "y"]);
     let r = read_record(&p, "u", "y").unwrap();
     assert_eq!(r.u, u);
     assert_eq!(r.y, y); // bit-exact: Parquet stores doubles as they are

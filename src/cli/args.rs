@@ -111,12 +111,18 @@ pub struct RunArgs {
 
 #[derive(Args, Debug)]
 pub struct FitArgs {
-    /// Estimation record (CSV with a header row, or Parquet).
+    /// Estimation record (delimited text, Parquet or MATLAB level-5 .mat).
     #[arg(long)]
     pub data: PathBuf,
-    /// Validation record, used only to judge the model.
+    /// Data rows A:B of the estimation record (1-based, inclusive) [default: all].
+    #[arg(long, value_name = "A:B", value_parser = parse_rows)]
+    pub rows: Option<[usize; 2]>,
+    /// Validation record, used only to judge the model [default with --val-rows: the --data file].
     #[arg(long)]
     pub validation: Option<PathBuf>,
+    /// Data rows A:B of the validation record (1-based, inclusive) [default: all].
+    #[arg(long, value_name = "A:B", value_parser = parse_rows)]
+    pub val_rows: Option<[usize; 2]>,
     /// Number of B coefficients (numerator), >= 1.
     #[arg(long)]
     pub nb: usize,
@@ -135,10 +141,10 @@ pub struct FitArgs {
     /// Frequency band LO,HI in Hz for the band fit against a Welch spectral estimate.
     #[arg(long, value_parser = parse_band)]
     pub band: Option<(f64, f64)>,
-    /// Input column name.
+    /// Input column: a name, or a 1-based position.
     #[arg(long, default_value = "u")]
     pub u: String,
-    /// Output column name of the estimation record.
+    /// Output column of the estimation record: a name, or a 1-based position.
     #[arg(long, default_value = "y")]
     pub y: String,
     /// Output column of the validation record [default: `y0` (noise-free output, as written
@@ -216,4 +222,11 @@ fn parse_band(s: &str) -> std::result::Result<(f64, f64), String> {
     }
     let p = |x: &str| x.trim().parse::<f64>().map_err(|_| format!("'{x}' is not a number"));
     Ok((p(parts[0])?, p(parts[1])?))
+}
+
+/// `A:B` -> [A, B] (checked by the library, which names the flag).
+fn parse_rows(s: &str) -> std::result::Result<[usize; 2], String> {
+    let (a, b) = s.split_once(':').ok_or_else(|| format!("'{s}': expected FIRST:LAST, e.g. 1:700"))?;
+    let n = |t: &str| t.trim().parse::<usize>().map_err(|_| format!("'{s}': '{t}' is not a row number"));
+    Ok([n(a)?, n(b)?])
 }

@@ -7,6 +7,7 @@ mod print;
 
 pub use args::*;
 
+use crate::data::ColumnRef;
 use crate::engine::{self, FitRequest, MergeEnd, RunEnd, RunOptions};
 use crate::error::{Error, Result};
 use crate::estimate::SolverOptions;
@@ -34,10 +35,12 @@ pub fn run(cli: Cli) -> Result<u8> {
 fn run_fit(a: &FitArgs) -> Result<u8> {
     let req = FitRequest {
         data: a.data.clone(),
-        u: a.u.clone(),
-        y: a.y.clone(),
+        u: ColumnRef::parse(&a.u),
+        y: ColumnRef::parse(&a.y),
+        rows: a.rows,
         validation: a.validation.clone(),
-        val_y: a.val_y.clone(),
+        val_y: a.val_y.as_deref().map(ColumnRef::parse),
+        val_rows: a.val_rows,
         nb: a.nb,
         nf: a.nf,
         k: a.k,

@@ -52,10 +52,11 @@ mod figures;
 mod html;
 mod plot;
 
-use crate::data::{self, Record};
+use crate::data::Record;
 use crate::error::{Error, Result};
 use crate::export::parquet::read_cells;
 use crate::export::write_atomically;
+use crate::job::DataSpec;
 use crate::job::{KGrid, k_values};
 use crate::reduce::Curve;
 use crate::reduce::{Candidate, Selection};
@@ -83,29 +84,14 @@ struct JobInfo {
     name: String,
     #[serde(default)]
     oesweep_version: Option<String>,
-    data: DataInfo,
+    data: DataSpec,
     #[serde(default)]
-    validation: Option<DataInfo>,
+    validation: Option<DataSpec>,
     grid: GridInfo,
     #[serde(default)]
     band_hz: Option<[f64; 2]>,
     #[serde(default)]
     start: Option<String>,
-}
-
-#[derive(Deserialize)]
-struct DataInfo {
-    path: PathBuf,
-    #[serde(default = "default_u")]
-    u: String,
-    #[serde(default)]
-    y: Option<String>,
-    #[serde(default)]
-    ts: Option<f64>,
-}
-
-fn default_u() -> String {
-    "u".into()
 }
 
 #[derive(Deserialize)]
@@ -160,7 +146,7 @@ impl Sweep {
         if let Some(v) = job.validation.as_mut() {
             v.path = resolve(&v.path);
         }
-        let gone = |spec: &DataInfo, what: &str| -> Result<()> {
+        let gone = |spec: &DataSpec, what: &str| -> Result<()> {
             if spec.path.is_file() {
                 Ok(())
             } else {
@@ -175,16 +161,10 @@ impl Sweep {
             }
         };
         gone(&job.data, "estimation")?;
-        let est = data::read_record(&job.data.path, &job.data.u, job.data.y.as_deref().unwrap_or("y"))?;
-        let val = match &job.validation {
-            Some(v) => {
-                gone(v, "validation")?;
-                // The sweep's default in case job.json leaves it open.
-                let y = data::validation_column(&v.path, v.y.as_deref(), "y")?;
-                Some(data::read_record(&v.path, &v.u, &y)?)
-            }
-            None => None,
-        };
+        if let Some(v) = &job.validation {
+            gone(v, "validation")?;
+        }
+        let (est, val) = crate::job::read_records(&job.data, job.validation.as_mut())?;
         Ok(Sweep { folder: folder.to_path_buf(), rows, selection, job, ks, ts, est, val })
     }
 

@@ -1,6 +1,8 @@
 //! Shared helpers of the integration tests: deterministic signals and test systems.
 #![allow(dead_code)]
 
+pub mod mat;
+
 use oesweep::oe;
 
 /// Deterministic uniform numbers in [0, 1) (64-bit LCG; only for test signals).

@@ -1,0 +1,514 @@
+//! Reading input/output records (METHOD.md section 1) from the files people publish.
+//!
+//! A record is two equally long numeric columns, the input `u` and the measured output `y`,
+//! taken from one file, optionally restricted to a range of its data rows (so one experiment
+//! can give both the estimation and the validation record). The format is chosen by extension:
+//!
+//! - `.parquet` / `.pq`: Parquet, read with polars ([`parquet`]);
+//! - `.mat`: MATLAB level-5 MAT-file (the default of `save` up to `-v7`), read with the
+//!   `matfile` crate; `u` and `y` name numeric vector variables ([`mat`]). A `-v7.3` file is
+//!   HDF5 and is refused with a hint how to re-save it;
+//! - anything else: delimited text read with the `csv` crate ([`text`]): RFC 4180 quoting,
+//!   fields separated by `,`, `;`, tabs or runs of whitespace (sniffed from the first lines
+//!   unless given), a header row or none (`header`: true, false or auto-detected), a byte-order
+//!   mark, CRLF line ends, a trailing delimiter on every line and blank lines at the end.
+//!
+//! Columns are chosen by name or by 1-based position ([`ColumnRef`]). Columns that are not
+//! selected are not looked at (they may be empty, text or have missing values); the selected
+//! ones must hold a finite number in every row of the range.
+//!
+//! Every problem is one [`Error::Input`] naming the file and, where it applies, the line (text,
+//! 1-based, counting the header) or row (Parquet and MAT, 1-based data row) and the column: the
+//! user should be able to open the file at the right place from the message alone.
+
+mod mat;
+mod parquet;
+mod text;
+
+use std::panic::{self, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+/// One identification record: the input and output columns of a data file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Record {
+    /// The file the record was read from (used in later error messages).
+    pub path: PathBuf,
+    /// Input samples `u_1..u_N`.
+    pub u: Vec<f64>,
+    /// Output samples `y_1..y_N` (same length as `u`).
+    pub y: Vec<f64>,
+    /// Name of the input column in the file (its header name, or "column 3" without one).
+    pub u_name: String,
+    /// Name of the output column in the file.
+    pub y_name: String,
+}
+
+impl Record {
+    /// Number of samples N.
+    pub fn len(&self) -> usize {
+        self.u.len()
+    }
+
+    /// True when the record holds no sample (never the case for a record read from a file).
+    pub fn is_empty(&self) -> bool {
+        self.u.is_empty()
+    }
+}
+
+/// A column of a data file: its name (header name, Parquet column, MAT variable) or its
+/// 1-based position (a JSON integer in the job file; digits on the command line).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ColumnRef {
+    Position(usize),
+    Name(String),
+}
+
+impl ColumnRef {
+    /// A command-line column: digits are a position, anything else a name.
+    pub fn parse(s: &str) -> ColumnRef {
+        match s.parse::<usize>() {
+            Ok(p) if !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit()) => ColumnRef::Position(p),
+            _ => ColumnRef::Name(s.to_string()),
+        }
+    }
+
+    pub fn name(s: &str) -> ColumnRef {
+        ColumnRef::Name(s.to_string())
+    }
+}
+
+impl std::fmt::Display for ColumnRef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ColumnRef::Name(n) => write!(f, "'{}'", one_line(n)),
+            ColumnRef::Position(p) => write!(f, "{p}"),
+        }
+    }
+}
+
+/// Whether a text file starts with a header row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Header {
+    Yes,
+    No,
+    /// A first line whose fields all parse as numbers is data; otherwise it is the header.
+    #[default]
+    Auto,
+}
+
+impl Serialize for Header {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match self {
+            Header::Yes => s.serialize_bool(true),
+            Header::No => s.serialize_bool(false),
+            Header::Auto => s.serialize_str("auto"),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Header {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Bool(bool),
+            Text(String),
+        }
+        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom("header: expected true, false or \"auto\""))? {
+            Raw::Bool(true) => Ok(Header::Yes),
+            Raw::Bool(false) => Ok(Header::No),
+            Raw::Text(t) if t == "auto" => Ok(Header::Auto),
+            Raw::Text(t) => Err(serde::de::Error::custom(format!(
+                "header: expected true, false or \"auto\", got \"{}\"",
+                one_line(&t)
+            ))),
+        }
+    }
+}
+
+/// The field separator of a text file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Delimiter {
+    /// One byte: `,`, `;` or a tab.
+    Byte(u8),
+    /// Runs of spaces and tabs (leading and trailing ones ignored), as in DaISy files.
+    Whitespace,
+}
+
+impl Delimiter {
+    /// The job file's spelling: `","`, `";"`, `"tab"` (or a tab character), `"whitespace"`.
+    pub fn parse(s: &str) -> std::result::Result<Delimiter, String> {
+        match s {
+            "," => Ok(Delimiter::Byte(b',')),
+            ";" => Ok(Delimiter::Byte(b';')),
+            "\t" | "tab" => Ok(Delimiter::Byte(b'\t')),
+            "whitespace" | " " => Ok(Delimiter::Whitespace),
+            other => Err(format!("\"{}\" is not one of \",\", \";\", \"tab\", \"whitespace\"", one_line(other))),
+        }
+    }
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Delimiter::Byte(b',') => ",",
+            Delimiter::Byte(b';') => ";",
+            Delimiter::Byte(b'\t') => "tab",
+            Delimiter::Byte(_) => "?",
+            Delimiter::Whitespace => "whitespace",
+        }
+    }
+}
+
+/// How to read a file besides which columns: the text dialect and the row range.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ReadOptions {
+    /// Text files: the separator; `None` = sniffed from the first lines.
+    pub delimiter: Option<Delimiter>,
+    /// Text files: whether the first line is a header.
+    pub header: Header,
+    /// Data rows `[first, last]`, 1-based and inclusive (the header is not a row); `None` =
+    /// all rows.
+    pub rows: Option<[usize; 2]>,
+}
+
+/// The rule for a row range, shared by the job file and `oesweep fit` (the caller names the
+/// field or flag).
+pub fn check_rows([first, last]: [usize; 2]) -> std::result::Result<(), String> {
+    if first >= 1 && first <= last {
+        Ok(())
+    } else {
+        Err(format!("[{first}, {last}] is not a range [first, last] of data rows with 1 <= first <= last"))
+    }
+}
+
+/// Column names of a file (text header, Parquet schema or numeric MAT variables), in file
+/// order; empty for a text file without a header.
+pub fn column_names(path: &Path, opts: &ReadOptions) -> Result<Vec<String>> {
+    match Format::of(path) {
+        Format::Parquet => guarded(path, "Parquet", || parquet::column_names(path)),
+        Format::Mat => mat::column_names(path),
+        Format::Text => text::column_names(path, opts),
+    }
+}
+
+/// The output column of a validation record: `given` when set; otherwise `y0` (the noise-free
+/// output `oesweep simulate` writes) when the file has that column, else `otherwise`. The one
+/// home of this default, for the job file, `oesweep fit` and the report.
+pub fn validation_column(
+    path: &Path,
+    given: Option<&ColumnRef>,
+    otherwise: &ColumnRef,
+    opts: &ReadOptions,
+) -> Result<ColumnRef> {
+    Ok(match given {
+        Some(c) => c.clone(),
+        None if column_names(path, opts)?.iter().any(|c| c == "y0") => ColumnRef::name("y0"),
+        None => otherwise.clone(),
+    })
+}
+
+/// Reads the columns named `u_col` and `y_col` of a file, all rows, default dialect.
+pub fn read_record(path: &Path, u_col: &str, y_col: &str) -> Result<Record> {
+    read_record_with(path, &ColumnRef::name(u_col), &ColumnRef::name(y_col), &ReadOptions::default())
+}
+
+/// Reads the input column `u` and the output column `y` of a file, as `opts` says.
+///
+/// All checks of [`read_columns_with`] apply; in addition the two columns must differ.
+pub fn read_record_with(path: &Path, u: &ColumnRef, y: &ColumnRef, opts: &ReadOptions) -> Result<Record> {
+    if u == y {
+        return Err(input_error(path, format!("the input and the output column are both {u}")));
+    }
+    let Columns { mut names, mut values } = read_columns_with(path, &[u.clone(), y.clone()], opts)?;
+    if names[0] == names[1] {
+        return Err(input_error(path, format!("the input and the output column are both '{}'", names[0])));
+    }
+    let (y, u) = (values.pop().expect("two columns"), values.pop().expect("two columns"));
+    let (y_name, u_name) = (names.pop().expect("two columns"), names.pop().expect("two columns"));
+    Ok(Record { path: path.to_path_buf(), u, y, u_name, y_name })
+}
+
+/// Reads the named numeric columns of a file, all rows, default dialect, in the order of
+/// `names`.
+pub fn read_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>> {
+    let cols: Vec<ColumnRef> = names.iter().map(|n| ColumnRef::name(n)).collect();
+    Ok(read_columns_with(path, &cols, &ReadOptions::default())?.values)
+}
+
+/// Columns read from a file: their names (as the file calls them) and values.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Columns {
+    pub names: Vec<String>,
+    pub values: Vec<Vec<f64>>,
+}
+
+/// Reads the numeric columns `cols` of a file (format chosen by extension, see the module
+/// docs), in the order of `cols`, restricted to `opts.rows`.
+///
+/// Fails with one [`Error::Input`] when the file cannot be read, a column is missing, the file
+/// has no data row, the row range reaches past the file, or any selected value is not a finite
+/// number.
+pub fn read_columns_with(path: &Path, cols: &[ColumnRef], opts: &ReadOptions) -> Result<Columns> {
+    if let Some(rows) = opts.rows {
+        check_rows(rows).map_err(|m| input_error(path, format!("rows {m}")))?;
+    }
+    match Format::of(path) {
+        Format::Parquet => guarded(path, "Parquet", || parquet::read_columns(path, cols, opts.rows)),
+        Format::Mat => mat::read_columns(path, cols, opts.rows),
+        Format::Text => text::read_columns(path, cols, opts),
+    }
+}
+
+/// Smallest record length accepted for OE(nb, nf) with delay `delay`:
+/// `max(20, delay + max(nb, nf) + 4 (nb + nf))`.
+///
+/// The first `delay + max(nb, nf)` samples are dominated by the zero initial conditions (the
+/// ARX initialisation cannot even form its regressors there); after them we ask for at least
+/// four samples per parameter so that the least-squares problems of the initialisation and the
+/// L2 phase are clearly overdetermined. This is a floor against nonsense, not a guarantee of a
+/// good fit: the paper uses N = 5000 for 24 parameters.
+pub fn min_samples(nb: usize, nf: usize, delay: usize) -> usize {
+    // Saturating: a job may ask for any delay up to usize::MAX, and a wrapped sum would
+    // let it through.
+    delay.saturating_add(nb.max(nf)).saturating_add(4usize.saturating_mul(nb.saturating_add(nf))).max(20)
+}
+
+/// An input error whose message is kept on one line: it quotes names and values taken from
+/// job and data files (and messages of the readers), any of which may hold a line break.
+fn input_error(path: &Path, msg: impl Into<String>) -> Error {
+    Error::input(path, one_line(&msg.into()))
+}
+
+/// `s` with control characters escaped (`\n`, `\u{1b}`): names taken from job or data files
+/// are quoted in messages, and a message must stay on one line.
+pub(crate) fn one_line(s: &str) -> String {
+    s.chars().fold(String::with_capacity(s.len()), |mut out, c| {
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+        out
+    })
+}
+
+/// Checks that `rec` can identify OE(nb, nf) with delay `delay`: at least
+/// [`min_samples`] samples, and neither the input nor the output is constant (a constant input
+/// does not excite the system; a constant output leaves nothing to fit).
+pub fn check_for_model(rec: &Record, nb: usize, nf: usize, delay: usize) -> Result<()> {
+    debug_assert_eq!(rec.u.len(), rec.y.len());
+    let n = rec.len();
+    let need = min_samples(nb, nf, delay);
+    if n < need {
+        return Err(input_error(
+            &rec.path,
+            format!("{n} samples are too few for OE(nb={nb}, nf={nf}) with delay {delay}: need at least {need}"),
+        ));
+    }
+    if let Some(v) = constant_value(&rec.u) {
+        return Err(input_error(
+            &rec.path,
+            format!("input column '{}' is constant (value {v}): it does not excite the system", rec.u_name),
+        ));
+    }
+    if let Some(v) = constant_value(&rec.y) {
+        return Err(input_error(
+            &rec.path,
+            format!("output column '{}' is constant (value {v}): there is nothing to fit", rec.y_name),
+        ));
+    }
+    Ok(())
+}
+
+/// `Some(mean)` when the spread of `x` is negligible relative to its level
+/// (max - min <= 1e-12 max(1, |mean|)): such a column carries no information, only round-off.
+fn constant_value(x: &[f64]) -> Option<f64> {
+    if x.is_empty() {
+        return None;
+    }
+    let (mut lo, mut hi, mut sum) = (f64::INFINITY, f64::NEG_INFINITY, 0.0);
+    for &v in x {
+        lo = lo.min(v);
+        hi = hi.max(v);
+        sum += v;
+    }
+    let mean = sum / x.len() as f64;
+    (hi - lo <= 1e-12 * mean.abs().max(1.0)).then_some(mean)
+}
+
+/// Panics of the reader while `guarded` runs are caught and not printed.
+static QUIET: AtomicUsize = AtomicUsize::new(0);
+static HOOK: Once = Once::new();
+
+/// Runs `read` and turns a panic into an input error. The Parquet decoder (and the MAT parser)
+/// trusts the
+/// file's metadata and panics on some corrupt files (an `unwrap` on a missing statistic,
+/// found by mutating a valid file), and a bad file must be exit 2 and one line, not a
+/// panic with a backtrace. The panic hook is wrapped once so it stays silent while any
+/// guarded read runs (any thread: the decoder may panic on a pool thread); other panics
+/// are still reported by the previous hook.
+fn guarded<T>(path: &Path, format: &str, read: impl FnOnce() -> Result<T>) -> Result<T> {
+    HOOK.call_once(|| {
+        let previous = panic::take_hook();
+        panic::set_hook(Box::new(move |info| {
+            if QUIET.load(Ordering::SeqCst) == 0 {
+                previous(info);
+            }
+        }));
+    });
+    QUIET.fetch_add(1, Ordering::SeqCst);
+    let outcome = panic::catch_unwind(AssertUnwindSafe(read));
+    QUIET.fetch_sub(1, Ordering::SeqCst);
+    outcome.unwrap_or_else(|payload| {
+        let what = payload
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown failure".into());
+        Err(input_error(path, format!("not a readable {format} file: the reader failed ({what})")))
+    })
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Format {
+    Parquet,
+    Mat,
+    Text,
+}
+
+impl Format {
+    fn of(path: &Path) -> Format {
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if ext.eq_ignore_ascii_case("parquet") || ext.eq_ignore_ascii_case("pq") {
+            Format::Parquet
+        } else if ext.eq_ignore_ascii_case("mat") {
+            Format::Mat
+        } else {
+            Format::Text
+        }
+    }
+}
+
+/// The columns of a file, listed for a "no column" message; long headers are abbreviated.
+fn list_columns(all: &[impl AsRef<str>]) -> String {
+    const SHOWN: usize = 20;
+    let mut s = all.iter().take(SHOWN).map(|c| c.as_ref()).collect::<Vec<_>>().join(", ");
+    if all.len() > SHOWN {
+        s.push_str(&format!(", ... ({} in all)", all.len()));
+    }
+    s
+}
+
+fn missing_column(path: &Path, name: &str, all: &[impl AsRef<str>]) -> Error {
+    input_error(path, format!("no column '{name}' (columns: {})", list_columns(all)))
+}
+
+/// Validates one parsed value; `place` is "line 7" or "row 7".
+fn check_finite(path: &Path, place: &str, col: &str, v: f64) -> Result<f64> {
+    if v.is_nan() {
+        Err(input_error(path, format!("{place}, column '{col}': NaN is not allowed")))
+    } else if v.is_infinite() {
+        Err(input_error(path, format!("{place}, column '{col}': infinite value")))
+    } else {
+        Ok(v)
+    }
+}
+
+/// The 0-based index range of `rows` in a file of `n` data rows (all of them for `None`), or
+/// the error naming what is outside.
+fn row_range(path: &Path, rows: Option<[usize; 2]>, n: usize) -> Result<std::ops::Range<usize>> {
+    if n == 0 {
+        return Err(input_error(path, "no data rows"));
+    }
+    match rows {
+        None => Ok(0..n),
+        Some([first, last]) if last <= n => Ok(first - 1..last),
+        Some([first, last]) => Err(input_error(
+            path,
+            format!("rows [{first}, {last}] reach past the end of the file: it has {n} data rows"),
+        )),
+    }
+}
+
+/// Resolves `cols` against a file's column `names` (in file order): the 0-based index of each,
+/// or one error naming what is missing, ambiguous or out of range. `kind` is "column" or
+/// "variable" for the messages.
+fn resolve_columns(path: &Path, cols: &[ColumnRef], names: &[String], width: usize) -> Result<Vec<usize>> {
+    cols.iter()
+        .map(|c| match c {
+            ColumnRef::Position(0) => {
+                Err(input_error(path, "column position 0: positions count from 1 (the first column is 1)"))
+            }
+            ColumnRef::Position(p) if *p > width => {
+                Err(input_error(path, format!("column position {p}: the file has {width} columns")))
+            }
+            ColumnRef::Position(p) => Ok(p - 1),
+            ColumnRef::Name(n) => {
+                let mut hits = names.iter().enumerate().filter(|(_, h)| *h == n).map(|(i, _)| i);
+                match (hits.next(), hits.next()) {
+                    (Some(i), None) => Ok(i),
+                    (Some(_), Some(_)) => Err(input_error(path, format!("column '{n}' appears twice in the header"))),
+                    (None, _) => Err(missing_column(path, n, names)),
+                }
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn extension_picks_the_format() {
+        assert_eq!(Format::of(Path::new("a/b.parquet")), Format::Parquet);
+        assert_eq!(Format::of(Path::new("b.PQ")), Format::Parquet);
+        assert_eq!(Format::of(Path::new("b.Mat")), Format::Mat);
+        assert_eq!(Format::of(Path::new("b.csv")), Format::Text);
+        assert_eq!(Format::of(Path::new("b.dat")), Format::Text);
+        assert_eq!(Format::of(Path::new("parquet")), Format::Text);
+    }
+
+    #[test]
+    fn column_refs_from_the_command_line_and_json() {
+        assert_eq!(ColumnRef::parse("3"), ColumnRef::Position(3));
+        assert_eq!(ColumnRef::parse("u"), ColumnRef::name("u"));
+        assert_eq!(ColumnRef::parse("+3"), ColumnRef::name("+3"));
+        assert_eq!(serde_json::from_str::<ColumnRef>("2").unwrap(), ColumnRef::Position(2));
+        assert_eq!(serde_json::from_str::<ColumnRef>("\"2\"").unwrap(), ColumnRef::name("2"));
+        assert_eq!(serde_json::from_str::<Header>("\"auto\"").unwrap(), Header::Auto);
+        assert_eq!(serde_json::from_str::<Header>("false").unwrap(), Header::No);
+        assert!(serde_json::from_str::<Header>("\"yes\"").is_err());
+    }
+
+    #[test]
+    fn min_samples_rule() {
+        assert_eq!(min_samples(1, 1, 1), 20);
+        assert_eq!(min_samples(12, 12, 1), 1 + 12 + 96);
+        assert_eq!(min_samples(9, 12, 2), 2 + 12 + 84);
+    }
+
+    #[test]
+    fn constant_detection_is_relative() {
+        assert_eq!(constant_value(&[3.0, 3.0, 3.0]), Some(3.0));
+        assert!(constant_value(&[1e6, 1e6 + 1e-7]).is_some());
+        assert!(constant_value(&[0.0, 1e-9]).is_none());
+        assert!(constant_value(&[1e6, 1e6 + 1e-3]).is_none());
+    }
+
+    #[test]
+    fn row_ranges() {
+        let p = Path::new("r.csv");
+        assert_eq!(row_range(p, None, 5).unwrap(), 0..5);
+        assert_eq!(row_range(p, Some([2, 5]), 5).unwrap(), 1..5);
+        let m = row_range(p, Some([2, 6]), 5).unwrap_err().to_string();
+        assert!(m.contains("rows [2, 6] reach past the end of the file: it has 5 data rows"), "{m}");
+        assert!(check_rows([0, 3]).is_err() && check_rows([4, 3]).is_err() && check_rows([3, 3]).is_ok());
+    }
+}

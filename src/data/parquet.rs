@@ -1,0 +1,79 @@
+//! Parquet data files through polars (only the `parquet` feature is enabled, so everything
+//! here sticks to the eager `ParquetReader` API).
+
+use std::fs::File;
+use std::path::Path;
+
+use polars::prelude::{DataType, ParquetReader, SerReader};
+
+use super::{ColumnRef, Columns, check_finite, input_error, resolve_columns, row_range};
+use crate::error::Result;
+
+fn open(path: &Path) -> Result<ParquetReader<File>> {
+    let file = File::open(path).map_err(|e| input_error(path, format!("cannot open file: {e}")))?;
+    Ok(ParquetReader::new(file))
+}
+
+fn schema_names(path: &Path, reader: &mut ParquetReader<File>) -> Result<Vec<String>> {
+    let schema = reader.schema().map_err(|e| input_error(path, format!("not a readable Parquet file: {e}")))?;
+    Ok(schema.iter_names().map(|n| n.to_string()).collect())
+}
+
+pub(super) fn column_names(path: &Path) -> Result<Vec<String>> {
+    let mut reader = open(path)?;
+    schema_names(path, &mut reader)
+}
+
+pub(super) fn read_columns(path: &Path, cols: &[ColumnRef], rows: Option<[usize; 2]>) -> Result<Columns> {
+    let mut reader = open(path)?;
+    let all = schema_names(path, &mut reader)?;
+    let index = resolve_columns(path, cols, &all, all.len())?;
+    let names: Vec<String> = index.iter().map(|&i| all[i].clone()).collect();
+    // Project onto the requested columns: other columns may have types this build of
+    // polars cannot decode, and they are none of our business.
+    let mut unique: Vec<String> = Vec::new();
+    for n in &names {
+        if !unique.contains(n) {
+            unique.push(n.clone());
+        }
+    }
+    let df = reader
+        .with_columns(Some(unique))
+        .finish()
+        .map_err(|e| input_error(path, format!("cannot read Parquet data: {e}")))?;
+    let range = row_range(path, rows, df.height())?;
+    let mut values = Vec::with_capacity(names.len());
+    for name in &names {
+        let col = df.column(name).map_err(|e| input_error(path, format!("cannot read column '{name}': {e}")))?;
+        let dtype = col.dtype();
+        if !dtype.is_primitive_numeric() {
+            return Err(input_error(path, format!("column '{name}' has type {dtype:?}, expected numbers")));
+        }
+        let cast = col.cast(&DataType::Float64).map_err(|e| input_error(path, format!("column '{name}': {e}")))?;
+        let ca = cast.f64().map_err(|e| input_error(path, format!("column '{name}': {e}")))?;
+        // A corrupt page header can make the decoder return fewer values than the file's
+        // row count (found by fuzzing), which would pair u and y samples wrongly.
+        if ca.len() != df.height() {
+            return Err(input_error(
+                path,
+                format!(
+                    "column '{name}' has {} values but the file has {} rows (corrupt file?)",
+                    ca.len(),
+                    df.height()
+                ),
+            ));
+        }
+        let mut v = Vec::with_capacity(range.len());
+        for (i, x) in ca.iter().enumerate().skip(range.start).take(range.len()) {
+            let row = i + 1;
+            match x {
+                Some(x) => v.push(check_finite(path, &format!("row {row}"), name, x)?),
+                None => {
+                    return Err(input_error(path, format!("row {row}, column '{name}': missing value (null)")));
+                }
+            }
+        }
+        values.push(v);
+    }
+    Ok(Columns { names, values })
+}
