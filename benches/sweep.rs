@@ -19,10 +19,17 @@ use std::time::Duration;
 fn sweep_throughput(c: &mut Criterion) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let est = read_record(&root.join("jobs/data/piezo_est.csv"), "u", "y").expect("bundled data");
-    let pairs: Vec<Pair> = (9..=10).flat_map(|nb| (8..=11).map(move |nf| Pair { nb, nf })).collect();
+    let pairs: Vec<Pair> = (9..=10).flat_map(|nb| (8..=11).map(move |nf| Pair { nb, nf, delay: 1 })).collect();
     let ks = vec![0.05, 0.0875, 0.15, 0.3, 0.6, 1.2];
-    let plan = Plan { delay: 1, pairs, ks, start: StartStrategy::default() };
-    let ctx = Context { est: &est, val: None, band: None, solver: SolverOptions::default() };
+    let plan = Plan { pairs, ks, start: StartStrategy::default() };
+    let ctx = Context {
+        est: &est,
+        val: None,
+        band: None,
+        solver: SolverOptions::default(),
+        levels: oesweep::data::Levels::none(),
+        initial_state: oesweep::estimate::InitialState::Zero,
+    };
     let mut group = c.benchmark_group("sweep");
     group.sample_size(10).measurement_time(Duration::from_secs(20)).warm_up_time(Duration::from_secs(1));
     group.throughput(Throughput::Elements(plan.n_cells() as u64));

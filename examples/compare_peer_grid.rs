@@ -72,7 +72,7 @@ fn main() {
         .par_iter()
         .map_init(Workspace::new, |ws, ((nb, nf), lines)| {
             let (nb, nf) = (*nb, *nf);
-            let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1 };
+            let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false };
             let t = Instant::now();
             let ls = estimate::fit_ls(&prob, &judge, &opts, ws);
             let mut ls_cmp = (f64::NAN, String::new());

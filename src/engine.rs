@@ -14,7 +14,7 @@
 use crate::checkpoint::{self, Manifest, StopOnSignal, Writer};
 use crate::data::{self, ColumnRef, ReadOptions, Record};
 use crate::error::{Error, Result};
-use crate::estimate::{self, HuberFit, Judge, LsFit, Problem, SolverOptions, Workspace};
+use crate::estimate::{self, HuberFit, InitialState, Judge, LsFit, Problem, SolverOptions, Workspace};
 use crate::export;
 use crate::job::{self, Inputs, ValidJob};
 use crate::plan::Plan;
@@ -46,6 +46,8 @@ impl Prepared {
             val: self.inputs.val.as_ref(),
             band: self.spectral.as_ref().map(|(s, b)| (s, &b[..])),
             solver: self.job.job.solver.options(),
+            levels: self.inputs.levels,
+            initial_state: self.job.job.initial_state,
         }
     }
 
@@ -288,7 +290,8 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
 
     // A whole run: the results, then the checkpoint has served (if deleting it fails, a rerun
     // finds every cell done and merges again), then the report.
-    let selection = write_results(&out, &p.job.job, &outcome.rows)?;
+    let notes = Notes { levels: Some(p.inputs.levels), warnings: p.inputs.warnings.clone() };
+    let selection = write_results(&out, &p.job.job, &outcome.rows, &notes)?;
     result.cleanup = checkpoint::remove(&out).err();
     let report = opts.report.then(|| crate::report::write_report(&out));
     result.end = RunEnd::Merged { selection: Box::new(selection), report };
@@ -303,15 +306,40 @@ struct JobAsRun<'a> {
     job: &'a job::Job,
 }
 
+/// What selection.json says about the data besides the picks.
+struct Notes {
+    /// The levels taken out of the records (None: a merge that could not read the data).
+    levels: Option<data::Levels>,
+    warnings: Vec<String>,
+}
+
+impl Notes {
+    /// A merge's notes: the job's records read again (the folder does not keep them).
+    fn of_job(job: &job::Job) -> Notes {
+        let mut job = job.clone();
+        match job::read_records(&job.data, job.validation.as_mut()) {
+            Ok((est, _)) => Notes {
+                levels: Some(data::Levels::of(job.offset, &est)),
+                warnings: data::levels::offset_warning(job.offset, &est).into_iter().collect(),
+            },
+            Err(_) => Notes { levels: None, warnings: Vec::new() },
+        }
+    }
+}
+
 /// The result files of a complete (or `--partial`) table: `cells.parquet`, `selection.json`,
 /// `job.json`, replacing any report of an earlier table. Returns the picks.
-fn write_results(out: &Path, job: &job::Job, rows: &[CellRow]) -> Result<Selection> {
+fn write_results(out: &Path, job: &job::Job, rows: &[CellRow], notes: &Notes) -> Result<Selection> {
     let sel_opts = ReduceOptions {
         basis: reduce::choose_basis(job.validation.is_some(), job.band_hz.is_some()),
         min_tolerance: job.selection.min_tolerance,
         fit_tolerance: job.selection.fit_tolerance,
     };
-    let selection = reduce::select(rows, &sel_opts);
+    let mut selection = reduce::select(rows, &sel_opts);
+    selection.offset = Some(job.offset);
+    selection.input_level = notes.levels.map(|l| l.u0);
+    selection.initial_state = Some(job.initial_state);
+    selection.warnings = notes.warnings.clone();
     // A report of the previous table would describe models this table may not have.
     crate::report::remove_report(out);
     export::parquet::write_cells(&out.join("cells.parquet"), rows)?;
@@ -417,7 +445,7 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
             result.end = MergeEnd::Incomplete;
             return Ok(result);
         }
-        let selection = write_results(out, &g.job, &g.rows)?;
+        let selection = write_results(out, &g.job, &g.rows, &Notes::of_job(&g.job))?;
         result.huber = g.rows.iter().filter(|r| r.method == Method::Huber).count();
         result.ls = g.rows.len() - result.huber;
         if result.missing.is_empty() {
@@ -446,6 +474,10 @@ pub struct FitRequest {
     pub val_y: Option<ColumnRef>,
     /// Data rows of the validation record (default: all).
     pub val_rows: Option<[usize; 2]>,
+    /// Offsets of the signals ([`data::levels`]).
+    pub offset: data::Offset,
+    /// The initial state `fit` and `fit_val` are computed with.
+    pub initial_state: InitialState,
     pub nb: usize,
     pub nf: usize,
     pub k: f64,
@@ -467,6 +499,12 @@ pub struct FitReport {
     pub nf: usize,
     pub delay: usize,
     pub band_hz: Option<(f64, f64)>,
+    /// The offset mode, and the input level u0 taken out (the model is `B/F (u - u0) + offset`).
+    pub offset_mode: data::Offset,
+    pub input_level: f64,
+    pub initial_state: InitialState,
+    /// What the user should know about the data.
+    pub warnings: Vec<String>,
     pub sigma: f64,
     #[serde(flatten)]
     pub huber: HuberFit,
@@ -508,10 +546,10 @@ impl FitRequest {
 pub fn fit(req: &FitRequest) -> Result<FitReport> {
     req.check()?;
     let opts = ReadOptions { rows: req.rows, ..ReadOptions::default() };
-    let est = data::read_record_with(&req.data, &req.u, &req.y, &opts)?;
+    let mut est = data::read_record_with(&req.data, &req.u, &req.y, &opts)?;
     data::check_for_model(&est, req.nb, req.nf, req.delay)?;
     let val_path = req.validation.clone().or_else(|| req.val_rows.map(|_| req.data.clone()));
-    let val: Option<Record> = match &val_path {
+    let mut val: Option<Record> = match &val_path {
         Some(p) => {
             let opts = ReadOptions { rows: req.val_rows, ..ReadOptions::default() };
             let col = data::validation_column(p, req.val_y.as_ref(), &req.y, &opts)?;
@@ -521,6 +559,12 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
         }
         None => None,
     };
+    let levels = data::Levels::of(req.offset, &est);
+    let warnings: Vec<String> = data::levels::offset_warning(req.offset, &est).into_iter().collect();
+    levels.apply(&mut est);
+    if let Some(v) = val.as_mut() {
+        levels.apply(v);
+    }
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
             let s = spectral::welch(&est.u, &est.y, ts, &WelchOptions::default())?;
@@ -532,13 +576,18 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
     let judge = Judge {
         validation: val.as_ref().map(|v| (&v.u[..], &v.y[..])),
         band: spec.as_ref().map(|(s, bins)| (s, &bins[..])),
+        initial_state: req.initial_state,
     };
-    let prob = Problem { u: &est.u, y: &est.y, nb: req.nb, nf: req.nf, delay: req.delay };
+    let prob =
+        Problem { u: &est.u, y: &est.y, nb: req.nb, nf: req.nf, delay: req.delay, offset: req.offset.estimated() };
     let mut ws = Workspace::new();
     let t0 = Instant::now();
-    let ls = estimate::fit_ls(&prob, &judge, &req.solver, &mut ws);
-    let (huber, _) = estimate::fit_huber_multi(&prob, &ls, req.k, &judge, &req.solver, &mut ws);
+    let mut ls = estimate::fit_ls(&prob, &judge, &req.solver, &mut ws);
+    let (mut huber, _) = estimate::fit_huber_multi(&prob, &ls, req.k, &judge, &req.solver, &mut ws);
     let seconds = t0.elapsed().as_secs_f64();
+    // Reported in the data's units, as in the table.
+    ls.offset = levels.offset(ls.offset);
+    huber.offset = levels.offset(huber.offset);
     Ok(FitReport {
         data: req.data.clone(),
         n: est.u.len(),
@@ -548,6 +597,10 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
         nf: req.nf,
         delay: req.delay,
         band_hz: req.band,
+        offset_mode: req.offset,
+        input_level: levels.u0,
+        initial_state: req.initial_state,
+        warnings,
         sigma: ls.sigma,
         converged: huber.termination.converged(),
         huber,

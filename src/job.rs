@@ -5,8 +5,9 @@
 //! its logarithmic twin), never by repeated float addition, so the same job always gives the
 //! same k values bit for bit. Every field, default and allowed range is documented in README.
 
-use crate::data::{self, ColumnRef, Delimiter, Header, ReadOptions, Record};
+use crate::data::{self, ColumnRef, Delimiter, Header, Levels, Offset, ReadOptions, Record};
 use crate::error::{Error, Result};
+use crate::estimate::InitialState;
 use crate::estimate::{HuberHessian, SolverOptions};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -15,6 +16,8 @@ use std::path::{Path, PathBuf};
 pub const MAX_CELLS: usize = 200_000;
 /// Largest order (nB or nF) a job may ask for.
 pub const MAX_ORDER: usize = 60;
+/// The delay of a job that names none.
+pub const DEFAULT_DELAY: usize = 1;
 
 /// A data record as named in the job file.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -104,6 +107,10 @@ pub struct Grid {
     /// Inclusive range [from, to] of nF.
     pub nf: [usize; 2],
     pub k: KGrid,
+    /// Inclusive range [from, to] of the input delay d in samples (default: the job's
+    /// top-level `delay`, itself 1 by default).
+    #[serde(default)]
+    pub delay: Option<[usize; 2]>,
 }
 
 /// Where each Huber fit starts.
@@ -213,8 +220,15 @@ pub struct Job {
     pub data: DataSpec,
     #[serde(default)]
     pub validation: Option<DataSpec>,
-    #[serde(default = "default_delay")]
-    pub delay: usize,
+    /// One input delay for the whole grid (shorthand of `grid.delay` = [d, d]).
+    #[serde(default)]
+    pub delay: Option<usize>,
+    /// Offsets of the signals ([`data::levels`]).
+    #[serde(default)]
+    pub offset: Offset,
+    /// The initial state the fits are judged with ([`InitialState`]).
+    #[serde(default)]
+    pub initial_state: InitialState,
     pub grid: Grid,
     #[serde(default)]
     pub band_hz: Option<[f64; 2]>,
@@ -228,10 +242,6 @@ pub struct Job {
     pub output: PathBuf,
 }
 
-fn default_delay() -> usize {
-    1
-}
-
 /// A checked job: every field in range, paths resolved, k grid expanded.
 #[derive(Clone, Debug)]
 pub struct ValidJob {
@@ -241,12 +251,13 @@ pub struct ValidJob {
     pub job: Job,
     pub nb: Vec<usize>,
     pub nf: Vec<usize>,
+    pub delays: Vec<usize>,
     pub ks: Vec<f64>,
 }
 
 impl ValidJob {
     pub fn n_pairs(&self) -> usize {
-        self.nb.len() * self.nf.len()
+        self.nb.len() * self.nf.len() * self.delays.len()
     }
     pub fn n_cells(&self) -> usize {
         self.n_pairs() * self.ks.len()
@@ -422,6 +433,19 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     if b1 > MAX_ORDER || f1 > MAX_ORDER {
         return Err(bad("grid", format!("orders above {MAX_ORDER} are not supported")));
     }
+    let [d0, d1] = match (job.grid.delay, job.delay) {
+        (Some(_), Some(_)) => {
+            return Err(bad("delay", "give either 'delay' or 'grid.delay', not both".into()));
+        }
+        (Some(range), None) => range,
+        (None, Some(d)) => [d, d],
+        (None, None) => [DEFAULT_DELAY; 2],
+    };
+    if d0 > d1 {
+        return Err(bad("grid.delay", format!("[{d0}, {d1}] is not a range [from, to] with from <= to")));
+    }
+    job.grid.delay = Some([d0, d1]);
+    job.delay = None;
     if let KGrid::Range(r) = &job.grid.k {
         if r.count == 0 {
             return Err(bad("grid.k.count", "must be at least 1".into()));
@@ -439,7 +463,7 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
         KGrid::List(v) => v.len(),
         KGrid::Range(r) => r.count,
     };
-    let cells = ((b1 - b0 + 1) * (f1 - f0 + 1)) as u128 * n_k as u128;
+    let cells = ((b1 - b0 + 1) * (f1 - f0 + 1)) as u128 * ((d1 - d0) as u128 + 1) * n_k as u128;
     if cells > MAX_CELLS as u128 {
         return Err(bad("grid", format!("{cells} cells is above the limit of {MAX_CELLS}")));
     }
@@ -488,7 +512,7 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     job.output = resolve(&base, &job.output);
     check_output_folder(&job.output).map_err(|msg| bad("output", msg))?;
     job.grid.k = KGrid::List(ks.clone());
-    Ok(ValidJob { file: path.to_path_buf(), job, nb, nf, ks })
+    Ok(ValidJob { file: path.to_path_buf(), job, nb, nf, delays: (d0..=d1).collect(), ks })
 }
 
 /// Checks, without leaving a trace, that `out` is a folder `run` will be able to create or
@@ -540,23 +564,33 @@ fn check_output_folder(out: &Path) -> std::result::Result<(), String> {
     }
 }
 
-/// The records a job names, read and checked.
+/// The records a job names, read and checked, with their levels taken out.
 pub struct Inputs {
     pub est: Record,
     pub val: Option<Record>,
+    /// The levels taken out of both records (the job's `offset`).
+    pub levels: Levels,
+    /// Things the user should know about the data (printed once, kept in selection.json).
+    pub warnings: Vec<String>,
 }
 
 /// Read the job's data files and check them against the largest orders of the grid.
 /// Fills in the validation output column actually used.
 pub fn load_inputs(vj: &mut ValidJob) -> Result<Inputs> {
     let (nb_max, nf_max) = (*vj.nb.last().unwrap(), *vj.nf.last().unwrap());
-    let delay_max = vj.job.delay;
-    let (est, val) = read_records(&vj.job.data, vj.job.validation.as_mut())?;
+    let delay_max = *vj.delays.last().unwrap();
+    let (mut est, mut val) = read_records(&vj.job.data, vj.job.validation.as_mut())?;
     data::check_for_model(&est, nb_max, nf_max, delay_max)?;
     if let Some(rec) = &val {
         data::check_for_model(rec, nb_max, nf_max, delay_max)?;
     }
-    Ok(Inputs { est, val })
+    let levels = Levels::of(vj.job.offset, &est);
+    let warnings = data::levels::offset_warning(vj.job.offset, &est).into_iter().collect();
+    levels.apply(&mut est);
+    if let Some(v) = val.as_mut() {
+        levels.apply(v);
+    }
+    Ok(Inputs { est, val, levels, warnings })
 }
 
 /// The records a validated job names, read as the job says (the one home of that, for the

@@ -1,16 +1,31 @@
-//! The plan: a validated job expanded into order pairs and cells (nB, nF, k).
+//! The plan: a validated job expanded into structures ("pairs": nB, nF, delay) and cells
+//! (a pair and a k).
 //!
-//! Order is fixed and independent of threads: pairs in (nB, nF) order, k in the job's order.
-//! The least-squares phase depends only on the pair (METHOD.md 5), so the pair is the unit
-//! that owns it and the cells of a pair share its result.
+//! Order is fixed and independent of threads: pairs in (delay, nB, nF) order, k in the job's
+//! order. The least-squares phase depends only on the pair (METHOD.md 5), so the pair is the
+//! unit that owns it and the cells of a pair share its result.
 
 use crate::job::{self, Job, StartStrategy, ValidJob};
 
-/// An order pair (nB, nF).
+/// A model structure: orders (nB, nF) and input delay.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Pair {
     pub nb: usize,
     pub nf: usize,
+    pub delay: usize,
+}
+
+/// All pairs of the given ranges, in plan order.
+fn pairs(nb: &[usize], nf: &[usize], delays: &[usize]) -> Vec<Pair> {
+    let mut out = Vec::with_capacity(nb.len() * nf.len() * delays.len());
+    for &delay in delays {
+        for &b in nb {
+            for &f in nf {
+                out.push(Pair { nb: b, nf: f, delay });
+            }
+        }
+    }
+    out
 }
 
 /// One Huber cell: an order pair and an index into the k grid.
@@ -22,7 +37,6 @@ pub struct Cell {
 
 #[derive(Clone, Debug)]
 pub struct Plan {
-    pub delay: usize,
     pub pairs: Vec<Pair>,
     pub ks: Vec<f64>,
     pub start: StartStrategy,
@@ -30,8 +44,7 @@ pub struct Plan {
 
 impl Plan {
     pub fn from_job(job: &ValidJob) -> Plan {
-        let pairs = job.nb.iter().flat_map(|&nb| job.nf.iter().map(move |&nf| Pair { nb, nf })).collect();
-        Plan { delay: job.job.delay, pairs, ks: job.ks.clone(), start: job.job.start }
+        Plan { pairs: pairs(&job.nb, &job.nf, &job.delays), ks: job.ks.clone(), start: job.job.start }
     }
 
     /// The plan of a job that was validated before (the job file a run leaves in its
@@ -39,8 +52,10 @@ impl Plan {
     /// without the checks and the file system access of validation.
     pub fn from_normalised(job: &Job) -> Plan {
         let ([b0, b1], [f0, f1]) = (job.grid.nb, job.grid.nf);
-        let pairs = (b0..=b1).flat_map(|nb| (f0..=f1).map(move |nf| Pair { nb, nf })).collect();
-        Plan { delay: job.delay, pairs, ks: job::k_values(&job.grid.k), start: job.start }
+        let [d0, d1] = job.grid.delay.unwrap_or([job.delay.unwrap_or(job::DEFAULT_DELAY); 2]);
+        let (nb, nf, delays): (Vec<usize>, Vec<usize>, Vec<usize>) =
+            ((b0..=b1).collect(), (f0..=f1).collect(), (d0..=d1).collect());
+        Plan { pairs: pairs(&nb, &nf, &delays), ks: job::k_values(&job.grid.k), start: job.start }
     }
 
     /// This plan restricted to some of its pairs (indices into `pairs`, in the order given):

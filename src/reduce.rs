@@ -129,6 +129,9 @@ pub struct Candidate {
     pub score: f64,
     pub b: Vec<f64>,
     pub f: Vec<f64>,
+    /// The model's output offset (the table's `offset`).
+    #[serde(default)]
+    pub offset: Option<f64>,
 }
 
 impl Candidate {
@@ -150,6 +153,7 @@ impl Candidate {
             score,
             b: row.b.clone(),
             f: row.f.clone(),
+            offset: row.offset,
         })
     }
 
@@ -199,6 +203,18 @@ pub struct Selection {
     pub failed: usize,
     pub min_tolerance: f64,
     pub fit_tolerance: f64,
+    /// The job's `offset` mode (absent in files of older versions).
+    #[serde(default)]
+    pub offset: Option<crate::data::Offset>,
+    /// The input level u0 taken out of both records (the model is `B/F (u - u0) + offset`).
+    #[serde(default)]
+    pub input_level: Option<f64>,
+    /// The initial state `fit` and `fit_val` were computed with.
+    #[serde(default)]
+    pub initial_state: Option<crate::estimate::InitialState>,
+    /// What the user should know about the data (e.g. a large output mean with offset "none").
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 /// The fit that ranks models: validation when a validation record was given, else the band fit
@@ -308,6 +324,10 @@ pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
         failed,
         min_tolerance: opts.min_tolerance,
         fit_tolerance: opts.fit_tolerance,
+        offset: None,
+        input_level: None,
+        initial_state: None,
+        warnings: Vec::new(),
     }
 }
 

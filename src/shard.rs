@@ -181,8 +181,8 @@ pub fn missing(plan: &Plan, rows: &[crate::table::CellRow]) -> Missing {
     let have: HashSet<RowKey> = rows.iter().map(|r| r.key()).collect();
     let mut m = Missing::default();
     for (p, pair) in plan.pairs.iter().enumerate() {
-        let ls = !have.contains(&ls_key(pair.nb, pair.nf));
-        let ks: Vec<usize> = (0..plan.ks.len()).filter(|&k| !have.contains(&huber_key(pair.nb, pair.nf, k))).collect();
+        let ls = !have.contains(&ls_key(pair));
+        let ks: Vec<usize> = (0..plan.ks.len()).filter(|&k| !have.contains(&huber_key(pair, k))).collect();
         if ls || !ks.is_empty() {
             m.cells += ks.len();
             m.ls += ls as usize;
@@ -199,8 +199,8 @@ mod tests {
     use crate::plan::Pair;
 
     fn plan(nb: std::ops::RangeInclusive<usize>, nf: std::ops::RangeInclusive<usize>, n_k: usize) -> Plan {
-        let pairs = nb.flat_map(|b| nf.clone().map(move |f| Pair { nb: b, nf: f })).collect();
-        Plan { delay: 1, pairs, ks: (1..=n_k).map(|i| i as f64 / 10.0).collect(), start: StartStrategy::Ls }
+        let pairs = nb.flat_map(|b| nf.clone().map(move |f| Pair { nb: b, nf: f, delay: 1 })).collect();
+        Plan { pairs, ks: (1..=n_k).map(|i| i as f64 / 10.0).collect(), start: StartStrategy::Ls }
     }
 
     #[test]

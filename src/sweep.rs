@@ -20,11 +20,11 @@
 //! and the workers look at [`Control::stop`] before each cell, so an interrupt stops handing
 //! out work while running cells finish.
 
-use crate::data::Record;
+use crate::data::{Levels, Record};
 use crate::estimate::chains::{CellOutcome, PairProblem, panic_message, walk_pair};
-use crate::estimate::{self, Judge, Problem, SolverOptions, StartKind, Workspace};
+use crate::estimate::{self, InitialState, Judge, Problem, SolverOptions, StartKind, Workspace};
 use crate::job::StartStrategy;
-use crate::plan::{Cell, Plan};
+use crate::plan::{Cell, Pair, Plan};
 use crate::progress::Progress;
 use crate::spectral::SpectralEstimate;
 use crate::table::{CellRow, Method, RowKey, huber_key, ls_key, sort_rows};
@@ -36,15 +36,42 @@ use std::time::Instant;
 
 /// Everything a cell needs besides its orders and k.
 pub struct Context<'a> {
+    /// The records with their levels taken out ([`Levels::apply`]).
     pub est: &'a Record,
     pub val: Option<&'a Record>,
     pub band: Option<(&'a SpectralEstimate, &'a [usize])>,
     pub solver: SolverOptions,
+    /// The levels taken out of the records; `levels.mode` says whether the fits estimate an
+    /// output offset.
+    pub levels: Levels,
+    pub initial_state: InitialState,
 }
 
 impl Context<'_> {
     fn judge(&self) -> Judge<'_> {
-        Judge { validation: self.val.map(|v| (&v.u[..], &v.y[..])), band: self.band }
+        Judge { validation: self.val.map(|v| (&v.u[..], &v.y[..])), band: self.band, initial_state: self.initial_state }
+    }
+
+    fn problem(&self, pair: &Pair) -> Problem<'_> {
+        Problem {
+            u: &self.est.u,
+            y: &self.est.y,
+            nb: pair.nb,
+            nf: pair.nf,
+            delay: pair.delay,
+            offset: self.levels.mode.estimated(),
+        }
+    }
+
+    /// The parameters a row holds, as the solver takes them.
+    fn theta(&self, row: &CellRow) -> Vec<f64> {
+        estimate::theta_of(&row.b, &row.f, self.levels.estimated_c(row.offset))
+    }
+
+    /// `row` with its `offset` in the data's units.
+    fn with_offset(&self, mut row: CellRow) -> CellRow {
+        row.offset = self.levels.offset(row.offset);
+        row
     }
 }
 
@@ -118,11 +145,11 @@ struct PairLs {
 }
 
 impl PairLs {
-    fn from_row(row: CellRow, alternatives: Vec<Vec<f64>>) -> Self {
+    fn from_row(ctx: &Context, row: CellRow, alternatives: Vec<Vec<f64>>) -> Self {
         // `CellRow::from_ls` marks a fit ok exactly when `LsFit::ok` holds (finite sigma, not
         // non_finite), so this is the fresh run's condition too.
         let start = match (row.ok(), row.sigma) {
-            (true, Some(sigma)) => Some((sigma, [&row.b[..], &row.f[..]].concat())),
+            (true, Some(sigma)) => Some((sigma, ctx.theta(&row))),
             _ => None,
         };
         PairLs { row, start, alternatives }
@@ -130,8 +157,8 @@ impl PairLs {
 }
 
 /// Parameters a finished Huber row hands to the next cell of its chain (none if it failed).
-fn chain_theta(row: &CellRow) -> Option<Vec<f64>> {
-    row.ok().then(|| [&row.b[..], &row.f[..]].concat())
+fn chain_theta(ctx: &Context, row: &CellRow) -> Option<Vec<f64>> {
+    row.ok().then(|| ctx.theta(row))
 }
 
 fn run_in_pool(
@@ -143,41 +170,37 @@ fn run_in_pool(
     stop: &AtomicBool,
 ) -> Vec<CellRow> {
     let judge = ctx.judge();
-    let delay = plan.delay;
     let stopped = || stop.load(Ordering::Relaxed);
-    let huber_key = |cell: Cell| {
-        let pair = plan.pairs[cell.pair];
-        huber_key(pair.nb, pair.nf, cell.k_index)
-    };
+    let huber_key = |cell: Cell| huber_key(&plan.pairs[cell.pair], cell.k_index);
     progress.message("least-squares phase");
     // The least-squares phase of one pair: (the pair's fit, whether it was computed in this
     // run); None: stopped before it.
     let pair_ls = |pair: &crate::plan::Pair, p: usize, ws: &mut Workspace| -> Option<(PairLs, bool)> {
-        let resumed = done.get(&ls_key(pair.nb, pair.nf));
+        let resumed = done.get(&ls_key(pair));
         let all_done = (0..plan.ks.len()).all(|k| done.contains_key(&huber_key(Cell { pair: p, k_index: k })));
         if let (Some(row), true) = (resumed, all_done) {
-            return Some((PairLs::from_row(row.clone(), Vec::new()), false));
+            return Some((PairLs::from_row(ctx, row.clone(), Vec::new()), false));
         }
         if stopped() {
             return None;
         }
-        let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay };
+        let prob = ctx.problem(pair);
         let t = Instant::now();
         // A resumed pair with cells left is fitted again for its extra Huber starts: the
         // least-squares phase is deterministic, so this reproduces the interrupted run.
         let (row, alternatives) =
             match catch_unwind(AssertUnwindSafe(|| estimate::fit_ls(&prob, &judge, &ctx.solver, ws))) {
-                Ok(fit) => (CellRow::from_ls(&fit, t.elapsed().as_secs_f64()), fit.alternatives),
+                Ok(fit) => (ctx.with_offset(CellRow::from_ls(&fit, t.elapsed().as_secs_f64())), fit.alternatives),
                 Err(e) => {
                     let reason = format!("least-squares phase panicked: {}", panic_message(e));
-                    (CellRow::failed(Method::Ls, pair.nb, pair.nf, delay, None, reason), Vec::new())
+                    (CellRow::failed(Method::Ls, pair.nb, pair.nf, pair.delay, None, reason), Vec::new())
                 }
             };
         if let Some(row) = resumed {
-            return Some((PairLs::from_row(row.clone(), alternatives), false));
+            return Some((PairLs::from_row(ctx, row.clone(), alternatives), false));
         }
         on_row(&row);
-        Some((PairLs::from_row(row, alternatives), true))
+        Some((PairLs::from_row(ctx, row, alternatives), true))
     };
     // Largest pairs first, one task each, so a phase ends on small pairs rather than on one
     // large pair while the other workers idle; the results go back into plan order.
@@ -240,14 +263,14 @@ fn run_in_pool(
                         let cell = Cell { pair: p, k_index: ki };
                         let row = match done.get(&huber_key(cell)) {
                             Some(row) => {
-                                prev = chain_theta(row).or(prev);
+                                prev = chain_theta(ctx, row).or(prev);
                                 continue;
                             }
                             None if stopped() => break,
                             None => huber_cell(plan, ctx, &judge, pair_ls, cell, prev.as_deref(), ws),
                         };
                         // From the row, like a resumed chain: one path, the same bits.
-                        prev = chain_theta(&row).or(prev);
+                        prev = chain_theta(ctx, &row).or(prev);
                         on_row(&row);
                         progress.inc(1);
                         out.push(row);
@@ -281,9 +304,8 @@ fn chain_cells(
     progress: &Progress,
 ) -> Vec<CellRow> {
     let pair = plan.pairs[p];
-    let delay = plan.delay;
     let failed = |ki: usize, reason: String| {
-        CellRow::failed(Method::Huber, pair.nb, pair.nf, delay, Some((ki, plan.ks[ki])), reason)
+        CellRow::failed(Method::Huber, pair.nb, pair.nf, pair.delay, Some((ki, plan.ks[ki])), reason)
     };
     let rows: Vec<CellRow> = match &ls.start {
         None => {
@@ -296,7 +318,7 @@ fn chain_cells(
                 .collect()
         }
         Some((sigma, theta_ls)) => {
-            let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay };
+            let prob = ctx.problem(&pair);
             let problem = PairProblem { prob: &prob, sigma: *sigma, judge, opts: &ctx.solver };
             let ks: Vec<(usize, f64)> = order.iter().map(|&ki| (ki, plan.ks[ki])).collect();
             let Some(cells) = walk_pair(&problem, theta_ls, &ls.alternatives, &ks, done, stopped, ws) else {
@@ -305,9 +327,14 @@ fn chain_cells(
             cells
                 .into_iter()
                 .map(|(ki, cell)| match cell {
-                    CellOutcome::Fit { fit, start, seconds } => {
-                        CellRow::from_huber_of_pair(&fit, (pair.nb, pair.nf, delay), *sigma, ki, start, seconds)
-                    }
+                    CellOutcome::Fit { fit, start, seconds } => ctx.with_offset(CellRow::from_huber_of_pair(
+                        &fit,
+                        (pair.nb, pair.nf, pair.delay),
+                        *sigma,
+                        ki,
+                        start,
+                        seconds,
+                    )),
                     CellOutcome::Panicked(reason) => failed(ki, reason),
                 })
                 .collect()
@@ -334,14 +361,14 @@ fn huber_cell(
     let pair = plan.pairs[cell.pair];
     let k = plan.ks[cell.k_index];
     let failed =
-        |reason: String| CellRow::failed(Method::Huber, pair.nb, pair.nf, plan.delay, Some((cell.k_index, k)), reason);
+        |reason: String| CellRow::failed(Method::Huber, pair.nb, pair.nf, pair.delay, Some((cell.k_index, k)), reason);
     let Some((sigma, theta_ls)) = &ls.start else {
         return failed(format!(
             "no least-squares fit for this order pair: {}",
             ls.row.reason.as_deref().unwrap_or("it failed")
         ));
     };
-    let prob = Problem { u: &ctx.est.u, y: &ctx.est.y, nb: pair.nb, nf: pair.nf, delay: plan.delay };
+    let prob = ctx.problem(&pair);
     let t = Instant::now();
     let run = catch_unwind(AssertUnwindSafe(|| {
         crate::failpoint::before_cell(pair.nb, pair.nf, cell.k_index);
@@ -368,14 +395,14 @@ fn huber_cell(
         }
     }));
     match run {
-        Ok((fit, start)) => CellRow::from_huber_of_pair(
+        Ok((fit, start)) => ctx.with_offset(CellRow::from_huber_of_pair(
             &fit,
-            (pair.nb, pair.nf, plan.delay),
+            (pair.nb, pair.nf, pair.delay),
             *sigma,
             cell.k_index,
             start,
             t.elapsed().as_secs_f64(),
-        ),
+        )),
         Err(e) => failed(format!("Huber fit panicked: {}", panic_message(e))),
     }
 }

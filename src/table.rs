@@ -5,6 +5,7 @@
 //! `status = "failed"`, a `reason`, and nulls instead of numbers.
 
 use crate::estimate::{HuberFit, LsFit, StartKind};
+use crate::plan::Pair;
 use serde::{Deserialize, Serialize};
 
 /// Which fit a row holds.
@@ -63,23 +64,27 @@ pub struct CellRow {
     pub seconds: f64,
     pub b: Vec<f64>,
     pub f: Vec<f64>,
+    /// The model's output offset in the data's units: estimated c, or the level taken out
+    /// (`offset` "mean"/"median"); null for "none" ([`crate::data::levels`]).
+    #[serde(default)]
+    pub offset: Option<f64>,
 }
 
-/// Identity of a row in a table: (is a Huber row, nb, nf, k_index). A complete table has
-/// exactly one row per key of its plan.
-pub type RowKey = (bool, u32, u32, Option<u32>);
+/// Identity of a row in a table: (is a Huber row, delay, nb, nf, k_index). A complete table
+/// has exactly one row per key of its plan.
+pub type RowKey = (bool, u32, u32, u32, Option<u32>);
 
-/// Key of the Huber row of cell (nb, nf, k_index).
-pub fn huber_key(nb: usize, nf: usize, k_index: usize) -> RowKey {
-    (true, nb as u32, nf as u32, Some(k_index as u32))
+/// Key of the Huber row of cell (pair, k_index).
+pub fn huber_key(pair: &Pair, k_index: usize) -> RowKey {
+    (true, pair.delay as u32, pair.nb as u32, pair.nf as u32, Some(k_index as u32))
 }
 
-/// Key of the least-squares row of order pair (nb, nf).
-pub fn ls_key(nb: usize, nf: usize) -> RowKey {
-    (false, nb as u32, nf as u32, None)
+/// Key of the least-squares row of a pair.
+pub fn ls_key(pair: &Pair) -> RowKey {
+    (false, pair.delay as u32, pair.nb as u32, pair.nf as u32, None)
 }
 
-/// Sort rows as in `cells.parquet`: `ls` rows first, then by nb, nf, k_index.
+/// Sort rows as in `cells.parquet`: `ls` rows first, then by delay, nb, nf, k_index.
 pub fn sort_rows(rows: &mut [CellRow]) {
     rows.sort_by_key(CellRow::key);
 }
@@ -116,6 +121,7 @@ impl CellRow {
             seconds,
             b: ls.b.clone(),
             f: ls.f.clone(),
+            offset: ls.offset,
         }
     }
 
@@ -160,6 +166,7 @@ impl CellRow {
             seconds,
             b: h.b.clone(),
             f: h.f.clone(),
+            offset: h.offset,
         }
     }
 
@@ -190,6 +197,7 @@ impl CellRow {
             seconds: 0.0,
             b: Vec::new(),
             f: Vec::new(),
+            offset: None,
         }
     }
 
@@ -199,6 +207,6 @@ impl CellRow {
 
     /// This row's [`RowKey`].
     pub fn key(&self) -> RowKey {
-        (self.method == Method::Huber, self.nb, self.nf, self.k_index)
+        (self.method == Method::Huber, self.delay, self.nb, self.nf, self.k_index)
     }
 }

@@ -18,7 +18,7 @@ fn recover(b: &[f64], f: &[f64], n: usize) {
     let u = binary_input(n, 3, 10.0, 7);
     let y = oe::simulate_vec(b, f, 1, &u);
     let truth = [b, f].concat();
-    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1 };
+    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let judge = Judge::default();
@@ -162,8 +162,9 @@ fn outlier_data(frac: f64) -> Outlier {
 #[test]
 fn huber_beats_least_squares_with_outliers_and_invariants_hold() {
     let d = outlier_data(0.10);
-    let prob = Problem { u: &d.u, y: &d.y, nb: 10, nf: 10, delay: 1 };
-    let judge = Judge { validation: Some((&d.uv, &d.yv0)), band: None };
+    let prob = Problem { u: &d.u, y: &d.y, nb: 10, nf: 10, delay: 1, offset: false };
+    let judge =
+        Judge { validation: Some((&d.uv, &d.yv0)), band: None, initial_state: oesweep::estimate::InitialState::Zero };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     ws.record_trace = true;
@@ -194,7 +195,7 @@ fn chains_recover_the_truth_merge_duplicates_and_keep_the_best() {
     let u = binary_input(2000, 3, 10.0, 7);
     let y = oe::simulate_vec(&b, &f, 1, &u);
     let truth = [&b[..], &f[..]].concat();
-    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1 };
+    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: false };
     let (opts, judge, mut ws) = (SolverOptions::default(), Judge::default(), Workspace::new());
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
     // The same start twice plus a poor one: all three reach the single (true) minimum.
@@ -246,7 +247,7 @@ fn warm_damping_converges_to_a_minimum_in_fewer_iterations() {
         .iter()
         .map(|v| v + rng.normal() + if rng.next() < 0.05 { 6.0 } else { 0.0 })
         .collect();
-    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1 };
+    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let cold = SolverOptions { warm_lambda0: opts.lambda0, ..opts.clone() };
@@ -297,7 +298,7 @@ fn a_losing_chain_out_of_iterations_runs_on_the_creeping_budget() {
     let u = binary_input(3000, 3, 10.0, 7);
     let mut rng = Lcg(9);
     let y: Vec<f64> = oe::simulate_vec(&b, &f, 1, &u).iter().map(|v| v + 0.1 * rng.normal()).collect();
-    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1 };
+    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
@@ -343,7 +344,7 @@ fn a_losing_chain_out_of_iterations_runs_on_the_creeping_budget() {
 fn the_backward_walk_finds_the_branch_below_a_fold_and_is_never_worse() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_est.csv");
     let rec = oesweep::data::read_record(&path, "u", "y").unwrap();
-    let prob = Problem { u: &rec.u, y: &rec.y, nb: 8, nf: 4, delay: 1 };
+    let prob = Problem { u: &rec.u, y: &rec.y, nb: 8, nf: 4, delay: 1, offset: false };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);

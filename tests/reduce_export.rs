@@ -35,6 +35,7 @@ fn huber_row(nb: u32, nf: u32, k_index: u32, criterion: f64, fit_val: f64) -> Ce
         seconds: 0.0731,
         b: (0..nb).map(|i| 0.1 * i as f64 - 0.35).collect(),
         f: (0..nf).map(|i| (-1.0f64).powi(i as i32) / (i + 2) as f64).collect(),
+        offset: None,
     }
 }
 
@@ -159,6 +160,7 @@ fn parquet_file_has_the_documented_schema() {
         ("seconds", DataType::Float64),
         ("b", list.clone()),
         ("f", list),
+        ("offset", DataType::Float64),
     ];
     let got: Vec<(String, DataType)> = df.schema().iter().map(|(n, d)| (n.to_string(), d.clone())).collect();
     let want: Vec<(String, DataType)> = expected.into_iter().map(|(n, d)| (n.to_string(), d)).collect();

@@ -29,6 +29,8 @@ fn run(dir: &Path, start: &str) -> PathBuf {
         "validation": {"path": data.join("piezo_val.csv"), "y": "y0"},
         "grid": {"nb": [7, 9], "nf": [4, 7], "k": {"from": 0.05, "to": 2.0, "count": 6, "spacing": "log"}},
         "band_hz": [0, 1500],
+        "offset": "none",
+        "initial_state": "zero",
         "start": start,
         "output": dir.join(start),
     });
@@ -40,6 +42,26 @@ fn run(dir: &Path, start: &str) -> PathBuf {
         .unwrap();
     assert!(o.status.code() == Some(0) || o.status.code() == Some(1), "{}", String::from_utf8_lossy(&o.stderr));
     dir.join(start)
+}
+
+/// selection.json without the fields added after the fixtures were blessed (issue 17: the
+/// offset mode and level, the initial state, warnings, each candidate's offset, null here).
+fn without_newer_fields(text: &str) -> serde_json::Value {
+    fn strip(v: &mut serde_json::Value) {
+        match v {
+            serde_json::Value::Object(m) => {
+                for key in ["offset", "input_level", "initial_state", "warnings"] {
+                    m.remove(key);
+                }
+                m.values_mut().for_each(strip);
+            }
+            serde_json::Value::Array(a) => a.iter_mut().for_each(strip),
+            _ => {}
+        }
+    }
+    let mut v: serde_json::Value = serde_json::from_str(text).unwrap();
+    strip(&mut v);
+    v
 }
 
 fn without_seconds(mut rows: Vec<CellRow>) -> Vec<CellRow> {
@@ -85,7 +107,8 @@ fn every_start_strategy_gives_the_checked_in_table() {
                 assert!(g == w, "start = {start}: row differs\n got  {g:?}\n want {w:?}");
             }
             let sel = std::fs::read_to_string(out.join("selection.json")).unwrap();
-            assert_eq!(sel, std::fs::read_to_string(fixture(start, "selection.json")).unwrap(), "start = {start}");
+            let want = std::fs::read_to_string(fixture(start, "selection.json")).unwrap();
+            assert_eq!(without_newer_fields(&sel), without_newer_fields(&want), "start = {start}");
         } else {
             eprintln!("no AVX2+FMA kernels here: comparing {start} to a relative 1e-6, not bit for bit");
             for (g, w) in got.iter().zip(&want) {

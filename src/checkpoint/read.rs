@@ -80,9 +80,8 @@ pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
         return Err(refuse(parts, format!("holds an interrupted run of a different job: {what}")));
     }
 
-    let huber_keys: HashSet<RowKey> =
-        plan.cells().iter().map(|c| huber_key(plan.pairs[c.pair].nb, plan.pairs[c.pair].nf, c.k_index)).collect();
-    let ls_keys: HashSet<RowKey> = plan.pairs.iter().map(|p| ls_key(p.nb, p.nf)).collect();
+    let huber_keys: HashSet<RowKey> = plan.cells().iter().map(|c| huber_key(&plan.pairs[c.pair], c.k_index)).collect();
+    let ls_keys: HashSet<RowKey> = plan.pairs.iter().map(ls_key).collect();
     let mut seen = HashSet::new();
     let mut out =
         Existing { parts: files.len(), next_part: files.last().map_or(1, |(n, _)| n + 1), ..Default::default() };
@@ -103,7 +102,7 @@ pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
                 _ => false,
             };
             let known = if row.method == Method::Huber { huber_keys.contains(&key) } else { ls_keys.contains(&key) };
-            if !(known && k_ok && row.delay as usize == plan.delay) {
+            if !(known && k_ok) {
                 return Err(refuse(
                     path,
                     format!(

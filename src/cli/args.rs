@@ -151,6 +151,14 @@ pub struct FitArgs {
     /// by `oesweep simulate`) when the file has one, else the --y column].
     #[arg(long)]
     pub val_y: Option<String>,
+    /// Signal offsets: estimate a constant output offset (input mean removed), subtract the
+    /// estimation record's mean or median, or none (the paper's model).
+    #[arg(long, value_enum, default_value = "estimate")]
+    pub offset: OffsetArg,
+    /// Initial state of the judged fits: estimated by least squares on each record (as
+    /// MATLAB's compare), or zero (the paper's).
+    #[arg(long, value_enum, default_value = "estimate")]
+    pub initial_state: InitialStateArg,
     /// Iteration cap of each minimisation.
     #[arg(long, default_value_t = SolverOptions::default().max_iterations)]
     pub max_iterations: usize,
@@ -229,4 +237,38 @@ fn parse_rows(s: &str) -> std::result::Result<[usize; 2], String> {
     let (a, b) = s.split_once(':').ok_or_else(|| format!("'{s}': expected FIRST:LAST, e.g. 1:700"))?;
     let n = |t: &str| t.trim().parse::<usize>().map_err(|_| format!("'{s}': '{t}' is not a row number"));
     Ok([n(a)?, n(b)?])
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum OffsetArg {
+    Estimate,
+    Mean,
+    Median,
+    None,
+}
+
+impl From<OffsetArg> for crate::data::Offset {
+    fn from(a: OffsetArg) -> Self {
+        match a {
+            OffsetArg::Estimate => crate::data::Offset::Estimate,
+            OffsetArg::Mean => crate::data::Offset::Mean,
+            OffsetArg::Median => crate::data::Offset::Median,
+            OffsetArg::None => crate::data::Offset::None,
+        }
+    }
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum InitialStateArg {
+    Estimate,
+    Zero,
+}
+
+impl From<InitialStateArg> for crate::estimate::InitialState {
+    fn from(a: InitialStateArg) -> Self {
+        match a {
+            InitialStateArg::Estimate => crate::estimate::InitialState::Estimate,
+            InitialStateArg::Zero => crate::estimate::InitialState::Zero,
+        }
+    }
 }

@@ -41,6 +41,8 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
         validation: a.validation.clone(),
         val_y: a.val_y.as_deref().map(ColumnRef::parse),
         val_rows: a.val_rows,
+        offset: a.offset.into(),
+        initial_state: a.initial_state.into(),
         nb: a.nb,
         nf: a.nf,
         k: a.k,

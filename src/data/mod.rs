@@ -21,9 +21,12 @@
 //! 1-based, counting the header) or row (Parquet and MAT, 1-based data row) and the column: the
 //! user should be able to open the file at the right place from the message alone.
 
+pub mod levels;
 mod mat;
 mod parquet;
 mod text;
+
+pub use levels::{Levels, Offset};
 
 use std::panic::{self, AssertUnwindSafe};
 use std::path::{Path, PathBuf};

@@ -168,7 +168,7 @@ impl ChainWalk {
             let mut j = i;
             while j > 0 {
                 let (Some((from, _)), Some((below, _))) = (&self.cells[j], &self.cells[j - 1]) else { break };
-                let start = [&from.b[..], &from.f[..]].concat();
+                let start = from.theta();
                 let incumbent = below.criterion;
                 let t = std::time::Instant::now();
                 let loss = Loss::Huber { gamma: ks[j - 1] * sigma };

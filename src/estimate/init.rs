@@ -70,7 +70,24 @@ fn iv_step(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
 /// stable. Least-squares OE fits have local minima (METHOD.md 8), and neither start is
 /// reliably the better basin, so the L2 phase runs from each and keeps the lower criterion.
 /// Falls back to `b = 0, F = 1` when the regressions are degenerate.
+///
+/// With an output offset ([`Problem::offset`]) the regressions run on the output less its
+/// mean, and each guess gets the offset that centres its residuals.
 pub fn initial_guesses(prob: &Problem) -> Vec<Vec<f64>> {
+    if prob.offset {
+        let mean = prob.y.iter().sum::<f64>() / prob.n() as f64;
+        let centred: Vec<f64> = prob.y.iter().map(|v| v - mean).collect();
+        let plain = Problem { y: &centred, offset: false, ..*prob };
+        return initial_guesses(&plain)
+            .into_iter()
+            .map(|mut g| {
+                let sim = oe::simulate_vec(&g[..prob.nb], &g[prob.nb..], prob.delay, prob.u);
+                let c = prob.y.iter().zip(&sim).map(|(y, s)| y - s).sum::<f64>() / prob.n() as f64;
+                g.push(if c.is_finite() { c } else { mean });
+                g
+            })
+            .collect();
+    }
     let mut out = Vec::new();
     if let Some(a) = arx(prob) {
         let mut cur = a.clone();

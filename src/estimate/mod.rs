@@ -11,11 +11,13 @@
 pub mod chains;
 pub mod huber;
 pub mod init;
+pub mod initial;
 pub mod normal;
 pub mod solver;
 
 pub use chains::{ChainWalk, Chains, PairProblem};
 pub use huber::Loss;
+pub use initial::InitialState;
 pub use solver::{HuberHessian, Problem, Solution, SolverOptions, Termination, Workspace};
 
 use crate::oe;
@@ -28,6 +30,22 @@ pub struct Judge<'a> {
     pub validation: Option<(&'a [f64], &'a [f64])>,
     /// Spectral estimate of the estimation record and the bins of the fit band.
     pub band: Option<(&'a SpectralEstimate, &'a [usize])>,
+    /// The initial state `fit` and `fit_val` are computed with.
+    pub initial_state: InitialState,
+}
+
+impl Judge<'_> {
+    /// The output the model is judged by on a record (u, y): its simulation from zero initial
+    /// conditions (`yhat0`, offset included), plus the fitted free response with
+    /// [`InitialState::Estimate`].
+    pub fn judged_output(&self, prob: &Problem, theta: &[f64], y: &[f64], yhat0: Vec<f64>) -> Vec<f64> {
+        let mut yhat = yhat0;
+        if self.initial_state == InitialState::Estimate {
+            let (b, f, _) = prob.split(theta);
+            initial::add_free_response(f, b.len(), prob.delay, y, &mut yhat);
+        }
+        yhat
+    }
 }
 
 /// Fit percentage `100 (1 - ||y - yhat|| / ||y - mean(y)||)`.
@@ -79,11 +97,16 @@ pub struct Assessment {
     pub max_pole_radius: f64,
 }
 
-fn assess(prob: &Problem, b: &[f64], f: &[f64], yhat: &[f64], judge: &Judge) -> Assessment {
-    let fit_val = judge.validation.map(|(u, y)| fit_percent(y, &oe::simulate_vec(b, f, prob.delay, u)));
+fn assess(prob: &Problem, theta: &[f64], yhat: &[f64], judge: &Judge) -> Assessment {
+    let (b, f, _) = prob.split(theta);
+    let fit_val = judge.validation.map(|(u, y)| {
+        let val = Problem { u, y, ..*prob };
+        fit_percent(y, &judge.judged_output(&val, theta, y, val.simulate_vec(theta)))
+    });
+    let fit = fit_percent(prob.y, &judge.judged_output(prob, theta, prob.y, yhat.to_vec()));
     let fit_band = judge.band.and_then(|(est, bins)| crate::spectral::band_fit(est, bins, b, f, prob.delay));
     Assessment {
-        fit: fit_percent(prob.y, yhat),
+        fit,
         fit_val: fit_val.filter(|v| v.is_finite()),
         fit_band: fit_band.filter(|v| v.is_finite()),
         max_pole_radius: oe::max_pole_radius(f),
@@ -107,6 +130,8 @@ pub struct LsFit {
     pub reflections: usize,
     pub b: Vec<f64>,
     pub f: Vec<f64>,
+    /// The estimated output offset c (None when the model has none, [`Problem::offset`]).
+    pub offset: Option<f64>,
     /// Further starts for the Huber phase (see [`fit_huber_multi`]): the least-squares
     /// solutions reached from the other initial guesses, and theta_LS with its poles pulled
     /// to radius 0.99 when it ended on the stability boundary. Deterministic, so a resumed
@@ -115,9 +140,14 @@ pub struct LsFit {
     pub alternatives: Vec<Vec<f64>>,
 }
 
+/// `[b, f]`, or `[b, f, c]` with an offset: the solver's parameter vector.
+pub fn theta_of(b: &[f64], f: &[f64], offset: Option<f64>) -> Vec<f64> {
+    b.iter().chain(f).chain(offset.as_ref()).copied().collect()
+}
+
 impl LsFit {
     pub fn theta(&self) -> Vec<f64> {
-        [&self.b[..], &self.f[..]].concat()
+        theta_of(&self.b, &self.f, self.offset)
     }
     /// True when the numbers are usable (finite criterion and parameters).
     pub fn ok(&self) -> bool {
@@ -141,6 +171,14 @@ pub struct HuberFit {
     pub reflections: usize,
     pub b: Vec<f64>,
     pub f: Vec<f64>,
+    /// The estimated output offset c (None when the model has none).
+    pub offset: Option<f64>,
+}
+
+impl HuberFit {
+    pub fn theta(&self) -> Vec<f64> {
+        theta_of(&self.b, &self.f, self.offset)
+    }
 }
 
 /// Steps 1-2: least-squares prediction-error fit from each initial guess (ARX, IV); the
@@ -193,11 +231,11 @@ pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Work
     // On the stability boundary the Huber fit cannot move the near-unit pole (1/F has an
     // almost infinite memory there), while a start just inside often reaches a much lower W.
     let theta = &sols[best].theta;
-    let radius = crate::oe::max_pole_radius(&theta[prob.nb..]);
+    let radius = crate::oe::max_pole_radius(prob.split(theta).1);
     if opts.huber_extra_starts > 0 && radius > BOUNDARY && radius.is_finite() {
         let mut c = theta.clone();
         let rho = CONTRACTED / radius;
-        for (j, v) in c[prob.nb..].iter_mut().enumerate() {
+        for (j, v) in prob.f_mut(&mut c).iter_mut().enumerate() {
             *v *= rho.powi(j as i32 + 1);
         }
         alternatives.push(c);
@@ -260,22 +298,23 @@ pub(crate) fn huber_from_solution(
     resimulate: bool,
 ) -> HuberFit {
     let gamma = k * sigma;
-    let (b, f) = sol.theta.split_at(prob.nb);
     if resimulate {
-        crate::oe::simulate(b, f, prob.delay, prob.u, &mut ws.yhat);
+        prob.simulate(&sol.theta, &mut ws.yhat);
     }
+    let (b, f, _) = prob.split(&sol.theta);
     let yhat = ws.yhat();
     HuberFit {
         k,
         gamma,
         criterion: sol.criterion,
         l1c: huber::l1_contribution(prob.y, yhat, gamma),
-        assessment: assess(prob, b, f, yhat, judge),
+        assessment: assess(prob, &sol.theta, yhat, judge),
         iterations: sol.iterations,
         termination: sol.termination,
         reflections: sol.reflections,
         b: b.to_vec(),
         f: f.to_vec(),
+        offset: prob.offset.then(|| prob.split(&sol.theta).2),
     }
 }
 
@@ -286,8 +325,7 @@ fn better(a: &Solution, b: &Solution) -> bool {
 
 fn ls_from_solution(prob: &Problem, sol: Solution, judge: &Judge, _opts: &SolverOptions, ws: &mut Workspace) -> LsFit {
     // The workspace holds the simulation of the last minimisation, not necessarily this one.
-    let (b, f) = sol.theta.split_at(prob.nb);
-    crate::oe::simulate(b, f, prob.delay, prob.u, &mut ws.yhat);
+    prob.simulate(&sol.theta, &mut ws.yhat);
     ls_fit(prob, sol, judge, ws)
 }
 
@@ -302,19 +340,20 @@ fn ls_fit(prob: &Problem, sol: Solution, judge: &Judge, ws: &Workspace) -> LsFit
     let n = prob.n() as f64;
     let mean_e = prob.y.iter().zip(yhat).map(|(a, b)| a - b).sum::<f64>() / n;
     let var = prob.y.iter().zip(yhat).map(|(a, b)| (a - b - mean_e).powi(2)).sum::<f64>() / n;
-    let (b, f) = sol.theta.split_at(prob.nb);
+    let (b, f, c) = prob.split(&sol.theta);
     LsFit {
         nb: prob.nb,
         nf: prob.nf,
         delay: prob.delay,
         criterion: sol.criterion,
         sigma: var.sqrt(),
-        assessment: assess(prob, b, f, yhat, judge),
+        assessment: assess(prob, &sol.theta, yhat, judge),
         iterations: sol.iterations,
         termination: sol.termination,
         reflections: sol.reflections,
         b: b.to_vec(),
         f: f.to_vec(),
+        offset: prob.offset.then_some(c),
         alternatives: Vec::new(),
     }
 }

@@ -91,6 +91,8 @@ pub struct NormalEquations {
     packed: Vec<f64>,
     alpha: Vec<f64>,
     scaled: Vec<f64>,
+    /// Column sums `sum_t w_t psi_t` of the offset's row ([`NormalEquations::add_offset`]).
+    sums: Vec<f64>,
 }
 
 impl NormalEquations {
@@ -174,6 +176,64 @@ impl NormalEquations {
                 h[j * d + i] = v;
             }
         }
+    }
+
+    /// Extends the normal equations of [`Self::build`] (nB + nF parameters, `h` with that
+    /// stride) by an output offset c, whose Jacobian column is all ones (METHOD.md 9.1): `h`
+    /// becomes (d0 + 1) x (d0 + 1) with the new row `(1/N) sum_t w_t [psi_t, 1]`, and
+    /// `g_c = (1/N) sum_t r_t`. The column sums of the unweighted Jacobian are sums of `xu` and
+    /// `xy` less a few end terms; the rows with `w_t != 1` are then corrected one by one, as
+    /// `build` corrects the Gram matrix. O(N + m d) for m reweighted rows; no allocation after
+    /// the first call.
+    #[allow(clippy::too_many_arguments)]
+    pub fn add_offset(
+        &mut self,
+        lay: &Layout,
+        xu: &[f64],
+        xy: &[f64],
+        w: Option<&[f64]>,
+        r: &[f64],
+        h: &mut [f64],
+        g: &mut [f64],
+    ) {
+        let n = xu.len();
+        let d0 = lay.dim();
+        let d = d0 + 1;
+        assert!(h.len() >= d * d && g.len() >= d && r.len() == n);
+        let inv_n = 1.0 / n as f64;
+        // Re-stride from d0 to d in place, last entry first (targets never precede sources).
+        for i in (0..d0).rev() {
+            for j in (0..d0).rev() {
+                h[i * d + j] = h[i * d0 + j];
+            }
+        }
+        let (total_u, total_y) = (xu.iter().sum::<f64>(), xy.iter().sum::<f64>());
+        self.sums.resize(d0, 0.0);
+        for (c, s) in self.sums.iter_mut().enumerate() {
+            let (seq, sign, lag) = lay.col(c);
+            let (a, total) = if seq == Seq::U { (xu, total_u) } else { (xy, total_y) };
+            // psi_tc = sign a[t - lag] for t >= lag: the sum runs over a[0 ..= n - 1 - lag].
+            *s = if lag >= n { 0.0 } else { sign * (total - a[n - lag..].iter().sum::<f64>()) };
+        }
+        let mut weight = n as f64;
+        if let Some(w) = w {
+            self.psi.resize(d0, 0.0);
+            for (t, &wt) in w.iter().enumerate() {
+                if wt != 1.0 {
+                    lay.row(xu, xy, t, &mut self.psi);
+                    for (s, p) in self.sums.iter_mut().zip(&self.psi) {
+                        *s -= (1.0 - wt) * p;
+                    }
+                    weight -= 1.0 - wt;
+                }
+            }
+        }
+        for (c, s) in self.sums.iter().enumerate() {
+            h[d0 * d + c] = s * inv_n;
+            h[c * d + d0] = s * inv_n;
+        }
+        h[d0 * d + d0] = weight * inv_n;
+        g[d0] = r.iter().sum::<f64>() * inv_n;
     }
 
     /// `h += sum_k alpha_k psi_{t_k} psi_{t_k}^T` (upper triangle) over `t_k = rows[k]`.

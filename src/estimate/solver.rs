@@ -160,11 +160,41 @@ pub struct Problem<'a> {
     pub nb: usize,
     pub nf: usize,
     pub delay: usize,
+    /// Estimate a constant output offset c jointly with B and F (METHOD.md 9.1): theta is
+    /// `[b, f, c]` and `yhat = q^-d B/F u + c`.
+    pub offset: bool,
 }
 
 impl Problem<'_> {
+    /// Number of parameters: nB + nF (+ 1 with an offset).
     pub fn dim(&self) -> usize {
-        self.nb + self.nf
+        self.nb + self.nf + usize::from(self.offset)
+    }
+
+    /// `theta` as (b, f, c); c = 0 without an offset.
+    pub fn split<'t>(&self, theta: &'t [f64]) -> (&'t [f64], &'t [f64], f64) {
+        let (b, rest) = theta.split_at(self.nb);
+        let (f, c) = rest.split_at(self.nf);
+        (b, f, c.first().copied().unwrap_or(0.0))
+    }
+
+    /// The F part of `theta`, mutable (for pole reflection).
+    pub fn f_mut<'t>(&self, theta: &'t mut [f64]) -> &'t mut [f64] {
+        &mut theta[self.nb..self.nb + self.nf]
+    }
+
+    /// [`Self::simulate`] into a new vector.
+    pub fn simulate_vec(&self, theta: &[f64]) -> Vec<f64> {
+        let mut y = vec![0.0; self.u.len()];
+        self.simulate(theta, &mut y);
+        y
+    }
+
+    /// The model's output at `theta` from zero initial conditions, offset included.
+    pub fn simulate(&self, theta: &[f64], yhat: &mut [f64]) {
+        let (b, f, c) = self.split(theta);
+        oe::simulate(b, f, self.delay, self.u, yhat);
+        add_offset(yhat, c);
     }
     pub fn layout(&self) -> Layout {
         Layout { nb: self.nb, nf: self.nf, delay: self.delay }
@@ -304,18 +334,26 @@ fn norm2(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
-/// Minimise `loss` over theta = [b, f] from `theta0`. The returned F is stable.
+/// `yhat += c`: the offset sits outside the dynamics, so the Jacobian signals `xu` and
+/// `xy = (1/F) (yhat - c)` of [`oe::simulate_filtered`] stay as they are.
+fn add_offset(yhat: &mut [f64], c: f64) {
+    if c != 0.0 {
+        yhat.iter_mut().for_each(|v| *v += c);
+    }
+}
+
+/// Minimise `loss` over theta = [b, f] (or [b, f, c], see [`Problem::offset`]) from `theta0`.
+/// The returned F is stable.
 pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions, ws: &mut Workspace) -> Solution {
     let n = prob.n();
     let d = prob.dim();
-    let nb = prob.nb;
     assert_eq!(theta0.len(), d);
     assert_eq!(prob.y.len(), n);
     ws.prepare(n, d);
     ws.theta.copy_from_slice(theta0);
     let mut reflections = 0;
     let mut lambda = opts.lambda0;
-    if oe::reflect_unstable(&mut ws.theta[nb..]) {
+    if oe::reflect_unstable(prob.f_mut(&mut ws.theta)) {
         reflections += 1;
     }
     let lay = prob.layout();
@@ -326,8 +364,9 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
     // yhat = q^-d B (1/F) u = B applied to xu = (1/F) u (LTI operators commute, zero initial
     // conditions): one pass gives the simulation and both Jacobian signals (xu and
     // xy = (1/F) yhat), so an accepted trial point needs no further filtering.
-    let (b0, f0) = ws.theta.split_at(nb);
+    let (b0, f0, c0) = prob.split(&ws.theta);
     oe::simulate_filtered(b0, f0, prob.delay, prob.u, &mut ws.xu, &mut ws.yhat, &mut ws.xy);
+    add_offset(&mut ws.yhat, c0);
     let mut crit = loss.criterion(prob.y, &ws.yhat);
     let finish = |ws: &mut Workspace, crit, iterations, termination, reflections, lambda| Solution {
         theta: ws.theta.clone(),
@@ -381,6 +420,9 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
         }
         let w = if use_weights { Some(&ws.w[..]) } else { None };
         ws.ne.build(&lay, &ws.xu, &ws.xy, w, &ws.r, &mut ws.h, &mut ws.g);
+        if prob.offset {
+            ws.ne.add_offset(&lay, &ws.xu, &ws.xy, w, &ws.r, &mut ws.h, &mut ws.g);
+        }
         if ws.h.iter().any(|v| !v.is_finite()) || ws.g.iter().any(|v| !v.is_finite()) {
             return finish(ws, crit, it, Termination::NonFinite, reflections, lambda);
         }
@@ -430,12 +472,13 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
                 }
                 continue;
             }
-            if !oe::is_stable(&ws.trial[nb..]) {
-                oe::reflect_unstable(&mut ws.trial[nb..]);
+            if !oe::is_stable(prob.f_mut(&mut ws.trial)) {
+                oe::reflect_unstable(prob.f_mut(&mut ws.trial));
                 reflected = true;
             }
-            let (tb, tf) = ws.trial.split_at(nb);
+            let (tb, tf, tc) = prob.split(&ws.trial);
             oe::simulate_filtered(tb, tf, prob.delay, prob.u, &mut ws.trial_xu, &mut ws.trial_yhat, &mut ws.trial_xy);
+            add_offset(&mut ws.trial_yhat, tc);
             let new_crit = loss.criterion(prob.y, &ws.trial_yhat);
             if new_crit.is_finite() && new_crit < crit {
                 let rho = if pred > 0.0 { (crit - new_crit) / pred } else { 0.0 };

@@ -18,6 +18,7 @@
 //! | `start` | String | no |
 //! | `seconds` | Float64 | no |
 //! | `b`, `f` | List(Float64) | no (a failed cell has empty lists) |
+//! | `offset` | Float64 | yes (null: the model has no offset; optional on reading, for tables of older versions) |
 //!
 //! Compression is zstd (polars' default). The file is written atomically (see [`crate::export`]),
 //! so a sweep can rewrite it as a checkpoint while a reader looks at the previous version.
@@ -77,7 +78,11 @@ fn read_frame(file: File) -> std::result::Result<DataFrame, String> {
     if let Some((name, _)) = COLUMNS.iter().find(|(name, _)| !schema.contains(name)) {
         return Err(format!("missing column `{name}` (not a table written by oesweep)"));
     }
-    let names = COLUMNS.iter().map(|(name, _)| name.to_string()).collect();
+    let names = COLUMNS
+        .iter()
+        .chain(OPTIONAL.iter().filter(|(name, _)| schema.contains(name)))
+        .map(|(name, _)| name.to_string())
+        .collect();
     reader.with_columns(Some(names)).finish().map_err(unreadable)
 }
 
@@ -108,6 +113,9 @@ const COLUMNS: [(&str, Kind); 24] = [
     ("b", Kind::ListF64),
     ("f", Kind::ListF64),
 ];
+
+/// Columns written after [`COLUMNS`] that tables of older versions lack: null when absent.
+const OPTIONAL: [(&str, Kind); 1] = [("offset", Kind::F64)];
 
 #[derive(Clone, Copy)]
 enum Kind {
@@ -173,13 +181,14 @@ fn to_frame(rows: &[CellRow]) -> PolarsResult<DataFrame> {
         col("seconds", rows, |r| r.seconds),
         list_column("b", rows, |r| &r.b),
         list_column("f", rows, |r| &r.f),
+        col("offset", rows, |r| r.offset),
     ];
     debug_assert!(
         columns
             .iter()
-            .zip(COLUMNS.iter())
+            .zip(COLUMNS.iter().chain(&OPTIONAL))
             .all(|(c, &(name, kind))| c.name().as_str() == name && *c.dtype() == kind.dtype())
-            && columns.len() == COLUMNS.len()
+            && columns.len() == COLUMNS.len() + OPTIONAL.len()
     );
     DataFrame::new(rows.len(), columns)
 }
@@ -281,6 +290,12 @@ fn from_frame(df: &DataFrame) -> std::result::Result<Vec<CellRow>, String> {
     let seconds = opt_f64(df, "seconds")?;
     let mut b = opt_list(df, "b")?;
     let mut f = opt_list(df, "f")?;
+    let offset = if df.column("offset").is_ok() {
+        column(df, "offset", Kind::F64)?;
+        opt_f64(df, "offset")?
+    } else {
+        vec![None; df.height()]
+    };
 
     (0..df.height())
         .map(|i| {
@@ -314,6 +329,7 @@ fn from_frame(df: &DataFrame) -> std::result::Result<Vec<CellRow>, String> {
                 seconds: required("seconds", i, seconds[i])?,
                 b: required("b", i, b[i].take())?,
                 f: required("f", i, f[i].take())?,
+                offset: offset[i],
             })
         })
         .collect()
