@@ -141,6 +141,8 @@ pub struct Resumed {
     pub plan_pairs: usize,
     /// Rows dropped because an earlier part had their cell (parts copied in by hand).
     pub duplicates: usize,
+    /// What the user should know about the data (also kept in selection.json).
+    pub warnings: Vec<String>,
 }
 
 /// How a run ended.
@@ -234,6 +236,7 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
         plan_cells: cells,
         plan_pairs: pairs,
         duplicates: existing.duplicates,
+        warnings: p.inputs.warnings.clone(),
     });
 
     // The sweep, every finished row handed to the checkpoint writer at once.

@@ -57,6 +57,9 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
         },
     };
     let report = engine::fit(&req)?;
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
     if a.json {
         println!("{}", serde_json::to_string(&report).expect("report serialises"));
     } else {
@@ -102,6 +105,9 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
     println!("start      {}", j.job.start.as_str());
     println!("ranking    by {:?} fit", p.ranking());
     println!("output     {}", j.output().display());
+    for w in &p.inputs.warnings {
+        eprintln!("warning: {w}");
+    }
     if let Some(n) = a.shards {
         if n == 0 {
             return Err(Error::Invalid("--shards must be at least 1".into()));
@@ -122,6 +128,9 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         report: a.report,
     };
     let on_resume = |r: &engine::Resumed| {
+        for w in &r.warnings {
+            eprintln!("warning: {w}");
+        }
         if r.cells + r.ls > 0 && !a.quiet {
             eprintln!(
                 "resuming from {} ({} parts): {} of {} cells and {} of {} least-squares fits already done",

@@ -32,24 +32,33 @@ pub(super) fn print_fit_summary(r: &FitReport) {
     println!("{:<22}{:>18}{:>18}", "fit (validation)", opt_pct(l.assessment.fit_val), opt_pct(h.assessment.fit_val));
     println!("{:<22}{:>18}{:>18}", "fit (band)", opt_pct(l.assessment.fit_band), opt_pct(h.assessment.fit_band));
     println!("{:<22}{:>18}{:>18}", "iterations", l.iterations, h.iterations);
-    println!("{:<22}{:>18}{:>18}", "termination", l.termination.as_str(), h.termination.as_str());
+    println!("{:<22}{:>18} {:>17}", "termination", l.termination.as_str(), h.termination.as_str());
     println!("{:<22}{:>18.6}{:>18.6}", "max pole radius", l.assessment.max_pole_radius, h.assessment.max_pole_radius);
     println!();
     println!("Huber b = {:?}", h.b);
     println!("Huber f = {:?}", h.f);
+    match h.offset {
+        Some(c) => println!("offset = {c} ({}; input level u0 = {} taken out)", r.offset_mode.as_str(), r.input_level),
+        None => println!("offset: none (the paper's model)"),
+    }
+    println!("initial state of the judged fits: {}", r.initial_state.as_str());
     println!("({:.3} s)", r.seconds);
 }
 
 pub(super) fn describe_grid(p: &Prepared) -> String {
     let (job, ks) = (&p.job, &p.job.ks);
     let (kmin, kmax) = ks.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &k| (a.min(k), b.max(k)));
+    let (d0, d1) = (job.delays[0], job.delays[job.delays.len() - 1]);
+    let delays = if d0 == d1 { format!("delay {d0}") } else { format!("delay {d0}..{d1}") };
     format!(
-        "nB {}..{} x nF {}..{} x {} values of k in [{kmin}, {kmax}]",
+        "nB {}..{} x nF {}..{} x {delays} x {} values of k in [{kmin}, {kmax}]; offset {}, initial state {}",
         job.nb[0],
         job.nb[job.nb.len() - 1],
         job.nf[0],
         job.nf[job.nf.len() - 1],
-        ks.len()
+        ks.len(),
+        job.job.offset.as_str(),
+        job.job.initial_state.as_str(),
     )
 }
 

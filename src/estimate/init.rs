@@ -13,18 +13,31 @@ use crate::oe;
 use faer::Mat;
 use faer::prelude::*;
 
-/// Regressor matrix with columns `[s1_{t-d-i+1}]_{i=1..nb}` and `[-s2_{t-j}]_{j=1..nf}`.
-fn regressors(u: &[f64], s2: &[f64], nb: usize, nf: usize, delay: usize) -> Mat<f64> {
+/// Regressor matrix with columns `[s1_{t-d-i+1}]_{i=1..nb}` and `[-s2_{t-j}]_{j=1..nf}`, and
+/// with an output offset a column of ones: `F (y - c) = B u` is `y = B u - sum f_j y_{t-j} +
+/// F(1) c`, linear in `F(1) c`.
+fn regressors(prob: &Problem, s2: &[f64]) -> Mat<f64> {
+    let (u, nb, nf, delay) = (prob.u, prob.nb, prob.nf, prob.delay);
     let n = u.len();
-    Mat::from_fn(n, nb + nf, |t, c| {
+    Mat::from_fn(n, prob.dim(), |t, c| {
         if c < nb {
             let lag = delay + c;
             if t >= lag { u[t - lag] } else { 0.0 }
-        } else {
+        } else if c < nb + nf {
             let lag = c - nb + 1;
             if t >= lag { -s2[t - lag] } else { 0.0 }
+        } else {
+            1.0
         }
     })
+}
+
+/// The regression's last coefficient `F(1) c` as the offset c (F is stable, so F(1) > 0).
+fn offset_from_regression(prob: &Problem, theta: &mut [f64]) {
+    if prob.offset {
+        let f1 = 1.0 + theta[prob.nb..prob.nb + prob.nf].iter().sum::<f64>();
+        theta[prob.nb + prob.nf] /= f1;
+    }
 }
 
 fn finite(v: &[f64]) -> bool {
@@ -34,27 +47,28 @@ fn finite(v: &[f64]) -> bool {
 /// ARX least-squares estimate (via QR), F stabilised. None when the regression is degenerate.
 pub fn arx(prob: &Problem) -> Option<Vec<f64>> {
     crate::faer_sequential();
-    let phi = regressors(prob.u, prob.y, prob.nb, prob.nf, prob.delay);
+    let phi = regressors(prob, prob.y);
     let rhs = Mat::from_fn(prob.n(), 1, |t, _| prob.y[t]);
     let sol = phi.col_piv_qr().solve_lstsq(&rhs);
     let mut theta: Vec<f64> = (0..prob.dim()).map(|i| sol[(i, 0)]).collect();
     if !finite(&theta) {
         return None;
     }
-    oe::reflect_unstable(&mut theta[prob.nb..]);
+    oe::reflect_unstable(prob.f_mut(&mut theta));
+    offset_from_regression(prob, &mut theta);
     Some(theta)
 }
 
 /// One IV pass with instruments simulated from `theta`.
 fn iv_step(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
     crate::faer_sequential();
-    let (nb, nf) = (prob.nb, prob.nf);
-    let x = oe::simulate_vec(&theta[..nb], &theta[nb..], prob.delay, prob.u);
+    // Instruments from the noise-free output, offset included.
+    let x = prob.simulate_vec(theta);
     if !finite(&x) {
         return None;
     }
-    let phi = regressors(prob.u, prob.y, nb, nf, prob.delay);
-    let z = regressors(prob.u, &x, nb, nf, prob.delay);
+    let phi = regressors(prob, prob.y);
+    let z = regressors(prob, &x);
     let zt_phi = z.transpose() * &phi;
     let zt_y = z.transpose() * Mat::from_fn(prob.n(), 1, |t, _| prob.y[t]);
     let sol = zt_phi.partial_piv_lu().solve(&zt_y);
@@ -62,7 +76,8 @@ fn iv_step(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
     if !finite(&th) {
         return None;
     }
-    oe::reflect_unstable(&mut th[nb..]);
+    oe::reflect_unstable(prob.f_mut(&mut th));
+    offset_from_regression(prob, &mut th);
     Some(th)
 }
 
@@ -71,23 +86,8 @@ fn iv_step(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
 /// reliably the better basin, so the L2 phase runs from each and keeps the lower criterion.
 /// Falls back to `b = 0, F = 1` when the regressions are degenerate.
 ///
-/// With an output offset ([`Problem::offset`]) the regressions run on the output less its
-/// mean, and each guess gets the offset that centres its residuals.
+/// With an output offset ([`Problem::offset`]) the regressions carry a constant column.
 pub fn initial_guesses(prob: &Problem) -> Vec<Vec<f64>> {
-    if prob.offset {
-        let mean = prob.y.iter().sum::<f64>() / prob.n() as f64;
-        let centred: Vec<f64> = prob.y.iter().map(|v| v - mean).collect();
-        let plain = Problem { y: &centred, offset: false, ..*prob };
-        return initial_guesses(&plain)
-            .into_iter()
-            .map(|mut g| {
-                let sim = oe::simulate_vec(&g[..prob.nb], &g[prob.nb..], prob.delay, prob.u);
-                let c = prob.y.iter().zip(&sim).map(|(y, s)| y - s).sum::<f64>() / prob.n() as f64;
-                g.push(if c.is_finite() { c } else { mean });
-                g
-            })
-            .collect();
-    }
     let mut out = Vec::new();
     if let Some(a) = arx(prob) {
         let mut cur = a.clone();

@@ -38,6 +38,32 @@ impl InitialState {
     }
 }
 
+/// A fitted model's output on a record (u, y) in the data's units: `q^-d B/F (u - u0) +
+/// offset` from zero initial conditions, plus the free response of the fitted initial state
+/// with [`InitialState::Estimate`] (the report's simulated outputs; the sweep's judged fits
+/// are the same on records with the levels taken out).
+#[allow(clippy::too_many_arguments)]
+pub fn model_output(
+    b: &[f64],
+    f: &[f64],
+    delay: usize,
+    offset: Option<f64>,
+    u0: f64,
+    u: &[f64],
+    y: &[f64],
+    initial_state: InitialState,
+) -> Vec<f64> {
+    let centred: Vec<f64> = u.iter().map(|v| v - u0).collect();
+    let mut yhat = oe::simulate_vec(b, f, delay, &centred);
+    if let Some(c) = offset {
+        yhat.iter_mut().for_each(|v| *v += c);
+    }
+    if initial_state == InitialState::Estimate {
+        add_free_response(f, b.len(), delay, y, &mut yhat);
+    }
+    yhat
+}
+
 /// `yhat` (the model's output from zero initial conditions on a record with output `y`) plus
 /// the free response of the initial state that fits `y` best, in place. `f` and `delay`, `nb`
 /// are the model's denominator, delay and numerator length.

@@ -52,8 +52,10 @@ mod figures;
 mod html;
 mod plot;
 
-use crate::data::Record;
+use crate::data::{Levels, Offset, Record};
 use crate::error::{Error, Result};
+use crate::estimate::InitialState;
+use crate::estimate::initial::model_output;
 use crate::export::parquet::read_cells;
 use crate::export::write_atomically;
 use crate::job::DataSpec;
@@ -92,6 +94,19 @@ struct JobInfo {
     band_hz: Option<[f64; 2]>,
     #[serde(default)]
     start: Option<String>,
+    /// Absent in job.json of versions before these fields: the paper's model then.
+    #[serde(default = "paper_offset")]
+    offset: Offset,
+    #[serde(default = "paper_initial_state")]
+    initial_state: InitialState,
+}
+
+fn paper_offset() -> Offset {
+    Offset::None
+}
+
+fn paper_initial_state() -> InitialState {
+    InitialState::Zero
 }
 
 #[derive(Deserialize)]
@@ -111,9 +126,22 @@ struct Sweep {
     ts: f64,
     est: Record,
     val: Option<Record>,
+    /// The input level the run took out of the records ([`crate::data::levels`]).
+    u0: f64,
+    initial_state: InitialState,
 }
 
 impl Sweep {
+    /// A table row's model output on a record, in the data's units.
+    fn output_of_row(&self, r: &CellRow, rec: &Record, is: InitialState) -> Vec<f64> {
+        model_output(&r.b, &r.f, r.delay as usize, r.offset, self.u0, &rec.u, &rec.y, is)
+    }
+
+    /// A pick's model output on a record, in the data's units.
+    fn output_of_pick(&self, c: &Candidate, rec: &Record, is: InitialState) -> Vec<f64> {
+        model_output(&c.b, &c.f, c.delay as usize, c.offset, self.u0, &rec.u, &rec.y, is)
+    }
+
     fn load(folder: &Path) -> Result<Sweep> {
         if !folder.is_dir() {
             return Err(Error::input(folder, "no such results folder (`oesweep run JOB` writes one)"));
@@ -165,7 +193,9 @@ impl Sweep {
             gone(v, "validation")?;
         }
         let (est, val) = crate::job::read_records(&job.data, job.validation.as_mut())?;
-        Ok(Sweep { folder: folder.to_path_buf(), rows, selection, job, ks, ts, est, val })
+        let u0 = Levels::of(job.offset, &est).u0;
+        let initial_state = job.initial_state;
+        Ok(Sweep { folder: folder.to_path_buf(), rows, selection, job, ks, ts, est, val, u0, initial_state })
     }
 
     /// k of a k index: from the job's grid, else from a row (a grid edited after the run).
@@ -311,15 +341,26 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
     });
 
     // --- W and L1C over nF ---
+    // With a delay grid, the grid figures are drawn at one delay: the picks' (else the first).
+    let delays: BTreeSet<u32> = s.rows.iter().map(|r| r.delay).collect();
+    let shown_delay = m2.or(m1).map(|p| p.model.delay).or_else(|| delays.first().copied());
+    let grid_rows: Vec<CellRow> = s.rows.iter().filter(|r| Some(r.delay) == shown_delay).cloned().collect();
+    let delay_note = (delays.len() > 1).then(|| {
+        format!(
+            "The table holds delays {}; the grid figures show delay {} (the picks').",
+            delays.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", "),
+            shown_delay.unwrap_or(0)
+        )
+    });
     let mut figs = Vec::new();
-    let mut notes = Vec::new();
-    let first_k = s.rows.iter().filter_map(|r| r.k_index).min();
+    let mut notes: Vec<String> = delay_note.iter().cloned().collect();
+    let first_k = grid_rows.iter().filter_map(|r| r.k_index).min();
     for (curve, pick, file) in [(Curve::W, m1, "report-w-nf.svg"), (Curve::L1c, m2, "report-l1c-nf.svg")] {
         match pick.map(|p| p.model.k_index).or(first_k) {
             Some(ki) => figs.push(figure(
                 folder,
                 file,
-                figures::curve_figure(&s.rows, curve, ki, s.k_of(ki), sel.min_tolerance, pick, file),
+                figures::curve_figure(&grid_rows, curve, ki, s.k_of(ki), sel.min_tolerance, pick, file),
             )?),
             None => notes.push(format!("{file}: the table has no Huber cell to draw.")),
         }
@@ -340,10 +381,10 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
     let n_k = s.ks.len().max(s.rows.iter().filter_map(|r| r.k_index).max().map_or(0, |m| m as usize + 1));
     for ki in heat_map_indices(n_k, &pick_ks) {
         let file = format!("{FIGURE_PREFIX}heat-k{ki:02}.svg");
-        figs.push(figure(folder, &file, figures::heat_figure(&s.rows, ki, s.k_of(ki), sel.basis, &picks, &file))?);
+        figs.push(figure(folder, &file, figures::heat_figure(&grid_rows, ki, s.k_of(ki), sel.basis, &picks, &file))?);
     }
     let file = "report-picks-k.svg";
-    figs.push(figure(folder, file, figures::picks_by_k_figure(&s.rows, &s.ks, sel, file))?);
+    figs.push(figure(folder, file, figures::picks_by_k_figure(&grid_rows, &s.ks, sel, file))?);
     let shown = if n_k <= MAX_HEAT_MAPS { "every k of the grid" } else { "k spread over the grid and the picks' k" };
     sections.push(Section {
         id: "maps",
@@ -384,15 +425,21 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
         Some(p) => match s.ls_row(p.model) {
             Some(ls) => {
                 let file = "report-residuals.svg";
-                res_figs.push(figure(folder, file, figures::residual_figure(&s.est.u, &s.est.y, ls, p, file))?);
+                let zero = InitialState::Zero;
+                let (y_ls, y_h) = (s.output_of_row(ls, &s.est, zero), s.output_of_pick(p.model, &s.est, zero));
+                res_figs.push(figure(folder, file, figures::residual_figure(&s.est.y, (ls, &y_ls), (p, &y_h), file))?);
                 let records = [("estimation", Some(&s.est)), ("validation", s.val.as_ref())];
                 for (name, rec) in records {
                     if let Some(rec) = rec {
                         let file = format!("{FIGURE_PREFIX}output-{name}.svg");
+                        let (y_ls, y_h) = (
+                            s.output_of_row(ls, rec, s.initial_state),
+                            s.output_of_pick(p.model, rec, s.initial_state),
+                        );
                         out_figs.push(figure(
                             folder,
                             &file,
-                            figures::output_figure(&rec.u, &rec.y, s.ts, name, ls, p, OUTPUT_WINDOW, &file),
+                            figures::output_figure(&rec.y, s.ts, name, (ls, &y_ls), (p, &y_h), OUTPUT_WINDOW, &file),
                         )?);
                     }
                 }
@@ -474,6 +521,18 @@ fn header(s: &Sweep) -> html::Header {
         "cells".into(),
         format!("{huber} Huber cells ({} failed), {ls} least-squares fits", s.selection.failed),
     ));
+    facts.push((
+        "signal levels".into(),
+        format!(
+            "offset <code>{}</code>, input level u0 = {} taken out; fits judged with initial state <code>{}</code>",
+            j.offset.as_str(),
+            plot::short(s.u0),
+            s.initial_state.as_str()
+        ),
+    ));
+    for w in &s.selection.warnings {
+        facts.push(("warning".into(), esc(w)));
+    }
     facts.push((
         "fit band".into(),
         j.band_hz.map(|[a, b]| format!("{} to {} Hz", plot::short(a), plot::short(b))).unwrap_or_else(|| "none".into()),

@@ -3,27 +3,22 @@
 use super::super::plot::*;
 use super::{Figure, Picked};
 use crate::estimate::fit_percent;
-use crate::oe::simulate_vec;
 use crate::table::CellRow;
 use plotters::prelude::*;
 
 /// Measured output and the simulated outputs of the least-squares model and of a Huber pick over
 /// the first samples of a record, and their errors below (paper Fig. 14).
 #[allow(clippy::too_many_arguments)]
+/// `y_ls` and `y_h` are the two models' outputs on the record ([`crate::estimate::initial::model_output`]).
 pub fn output_figure(
-    u: &[f64],
     y: &[f64],
     ts: f64,
     record: &str,
-    ls: &CellRow,
-    pick: Picked<'_>,
+    (ls, y_ls): (&CellRow, &[f64]),
+    (pick, y_h): (Picked<'_>, &[f64]),
     window: usize,
     file: &str,
 ) -> std::result::Result<Figure, String> {
-    let m = pick.model;
-    let delay = m.delay as usize;
-    let y_ls = simulate_vec(&ls.b, &ls.f, delay, u);
-    let y_h = simulate_vec(&m.b, &m.f, delay, u);
     let (fit_ls, fit_h) = (fit_percent(y, &y_ls), fit_percent(y, &y_h));
     let n = window.min(y.len());
     let (scale, unit) = if n as f64 * ts < 2.0 { (1e3, "ms") } else { (1.0, "s") };
@@ -109,7 +104,7 @@ pub fn output_figure(
     })?;
     let caption = format!(
         "Top: the first {n} of {} samples of the {record} record ({}) and the outputs the least-squares and the \
-         Huber model simulate from its input (zero initial conditions); bottom: their errors y - ŷ, on an axis of \
+         Huber model simulate from its input (offset included; initial state fitted to this record unless the job says initial_state \"zero\"); bottom: their errors y - ŷ, on an axis of \
          twice the 90 % quantile of |y - ŷ| (spikes go beyond it). Fits are over the whole record.{}",
         y.len(),
         if record == "validation" { "never used for fitting" } else { "the data the models were fitted to" },

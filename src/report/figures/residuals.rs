@@ -2,7 +2,6 @@
 
 use super::super::plot::*;
 use super::{Figure, Picked};
-use crate::oe::simulate_vec;
 use crate::table::CellRow;
 use plotters::prelude::*;
 use std::f64::consts::PI;
@@ -25,19 +24,18 @@ fn histogram(e: &[f64], reach: f64, bins: usize) -> (Vec<usize>, usize) {
 
 /// Residuals of the least-squares fit and of a Huber pick (same orders) on the estimation
 /// record, as histograms with ±gamma marked (paper Fig. 9).
+/// `y_ls` and `y_h` are the two models' outputs from zero initial conditions (the residuals
+/// of the criterion).
 pub fn residual_figure(
-    u: &[f64],
     y: &[f64],
-    ls: &CellRow,
-    pick: Picked<'_>,
+    (ls, y_ls): (&CellRow, &[f64]),
+    (pick, y_h): (Picked<'_>, &[f64]),
     file: &str,
 ) -> std::result::Result<Figure, String> {
     let m = pick.model;
-    let delay = m.delay as usize;
-    let resid =
-        |b: &[f64], f: &[f64]| -> Vec<f64> { y.iter().zip(simulate_vec(b, f, delay, u)).map(|(a, s)| a - s).collect() };
-    let e_ls = resid(&ls.b, &ls.f);
-    let e_h = resid(&m.b, &m.f);
+    let resid = |s: &[f64]| -> Vec<f64> { y.iter().zip(s).map(|(a, s)| a - s).collect() };
+    let e_ls = resid(y_ls);
+    let e_h = resid(y_h);
     let gamma = m.gamma;
     let sigma = ls.sigma.unwrap_or(f64::NAN);
     let share = |e: &[f64]| 100.0 * e.iter().filter(|v| v.abs() > gamma).count() as f64 / e.len() as f64;
