@@ -45,7 +45,7 @@ fn offset_row_of_the_normal_equations_is_the_explicit_sum() {
         ne.build(&lay, &xu, &xy, weights, &r, &mut h, &mut g);
         ne.add_offset(&lay, &xu, &xy, weights, &r, &mut h, &mut g);
         let (mut want_h, mut want_g) = (vec![0.0; 25], vec![0.0; 5]);
-        let mut psi = vec![0.0; 5];
+        let mut psi = [0.0; 5];
         for t in 0..n {
             lay.row(&xu, &xy, t, &mut psi[..4]);
             psi[4] = 1.0;

@@ -19,7 +19,7 @@ pub fn output_figure(
     window: usize,
     file: &str,
 ) -> std::result::Result<Figure, String> {
-    let (fit_ls, fit_h) = (fit_percent(y, &y_ls), fit_percent(y, &y_h));
+    let (fit_ls, fit_h) = (fit_percent(y, y_ls), fit_percent(y, y_h));
     let n = window.min(y.len());
     let (scale, unit) = if n as f64 * ts < 2.0 { (1e3, "ms") } else { (1.0, "s") };
     let t = |i: usize| i as f64 * ts * scale;
