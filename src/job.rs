@@ -392,12 +392,14 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
         None => return Err(bad("data.ts", "missing: the sampling period in seconds is required".into())),
     }
     if let Some(v) = job.validation.as_mut() {
-        // The usual split of one experiment: same file and layout, other rows.
+        // The usual split of one experiment: same file and layout, other rows; or the same
+        // rows, other columns (`uVal`, `yVal` beside `uEst`, `yEst`).
         if v.path.as_os_str().is_empty() {
-            if v.rows.is_none() {
+            if v.rows.is_none() && v.u.is_none() && v.y.is_none() {
                 return Err(bad(
                     "validation",
-                    "give its 'path', or 'rows' of the estimation file (the validation would be the estimation record)"
+                    "give its 'path', or the 'rows' or columns ('u', 'y') it takes from the estimation file (as \
+                     it is, it would be the estimation record)"
                         .into(),
                 ));
             }

@@ -326,3 +326,40 @@ fn every_format_of_one_record_gives_the_same_pick() {
         assert!(rows == &picks[0].3, "{file}: the table differs");
     }
 }
+
+/// The layout of the cascaded-tanks benchmark file: one header of quoted names for both
+/// records side by side, a trailing comma on every line, a `Ts` column with a value in its first
+/// row only, and a blank line at the end. The validation record takes other columns of the
+/// same file.
+#[test]
+fn side_by_side_records_with_a_sparse_column_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let (b, f) = oe22();
+    let n = 600;
+    let (ue, uv) = (binary_input(n, 3, 1.0, 31), binary_input(n, 3, 1.0, 32));
+    let (ye, yv) = (oe::simulate_vec(&b, &f, 1, &ue), oe::simulate_vec(&b, &f, 1, &uv));
+    let mut text = String::from("\"uEst\",\"uVal\",\"yEst\",\"yVal\",\"Ts\",\n");
+    for t in 0..n {
+        let ts = if t == 0 { "4" } else { "" };
+        text.push_str(&format!("{},{},{},{},{ts},\n", ue[t] + 5.0, uv[t] + 5.0, ye[t] + 3.0, yv[t] + 3.0));
+    }
+    text.push('\n');
+    std::fs::write(dir.path().join("tanks.csv"), text).unwrap();
+    let job = serde_json::json!({
+        "name": "tanks",
+        "data": {"path": "tanks.csv", "u": "uEst", "y": "yEst", "ts": 4},
+        "validation": {"u": "uVal", "y": "yVal"},
+        "grid": {"nb": [2, 2], "nf": [2, 2], "k": [1.0]},
+        "output": "out",
+    });
+    let path = dir.path().join("job.json");
+    std::fs::write(&path, job.to_string()).unwrap();
+    let o = run(&path);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let sel: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/selection.json")).unwrap()).unwrap();
+    assert!(sel["m1"]["fit_val"].as_f64().unwrap() > 99.9, "{}", sel["m1"]);
+    let c = sel["m1"]["offset"].as_f64().unwrap();
+    // y = G u + 3 with u around 5: the offset at the input level u0 is 3 + G(1) (u0 - 5).
+    assert!(c.is_finite(), "{c}");
+}

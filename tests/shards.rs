@@ -28,7 +28,7 @@ fn text(o: &Output) -> String {
 
 /// Data from the bundled piezo model (noise and spikes, so the extra least-squares starts and
 /// the continuation chains matter) and a job over 16 order pairs x 4 k in `dir`.
-fn setup(dir: &Path, start: &str) -> PathBuf {
+fn setup(dir: &Path, start: &str, delays: [usize; 2]) -> PathBuf {
     for (name, seed, spikes) in [("est.csv", 1, 0.03), ("val.csv", 2, 0.0)] {
         let noise = common::Noise { amplitude: 1.0, std: 0.05, spike_probability: spikes, spike_range: "1,3" };
         common::simulate(&common::piezo_system(), &dir.join(name), 3000, seed, &noise);
@@ -38,7 +38,7 @@ fn setup(dir: &Path, start: &str) -> PathBuf {
             "name": "shards",
             "data": {"path": "est.csv", "ts": 1e-4},
             "validation": {"path": "val.csv"},
-            "grid": {"nb": [5, 8], "nf": [4, 7], "k": {"from": 0.1, "to": 2.0, "count": 4, "spacing": "log"}},
+            "grid": {"nb": [5, 8], "nf": [4, 7], "delay": delays, "k": {"from": 0.1, "to": 2.0, "count": 4, "spacing": "log"}},
             "band_hz": [0, 1500],
             "start": start,
             "output": out,
@@ -92,11 +92,11 @@ fn file(dir: &Path, name: &str) -> String {
     std::fs::read_to_string(dir.join(name)).unwrap()
 }
 
-fn shards_side_by_side(start: &str) {
+fn shards_side_by_side(start: &str, delays: [usize; 2]) {
     let dir = tempfile::tempdir().unwrap();
-    let job = setup(dir.path(), start);
+    let job = setup(dir.path(), start, delays);
     let expected = reference(dir.path());
-    assert_eq!(expected.len(), 16 + 64);
+    assert_eq!(expected.len(), (16 + 64) * (delays[1] - delays[0] + 1));
 
     let out = dir.path().join("out");
     run_shards(&job, &[0, 1, 2], 3);
@@ -121,23 +121,29 @@ fn shards_side_by_side(start: &str) {
 
 #[test]
 fn three_shard_processes_and_a_merge_give_the_single_process_table() {
-    shards_side_by_side("ls");
+    shards_side_by_side("ls", [1, 1]);
 }
 
 #[test]
 fn shards_keep_continuation_chains_and_extra_starts_exact() {
-    shards_side_by_side("best");
+    shards_side_by_side("best", [1, 1]);
 }
 
 #[test]
 fn shards_keep_the_k_chains_exact() {
-    shards_side_by_side("chains");
+    shards_side_by_side("chains", [1, 1]);
+}
+
+/// The delay as a grid dimension: pairs (nB, nF, d) are dealt to the shards like order pairs.
+#[test]
+fn shards_split_a_delay_grid() {
+    shards_side_by_side("chains", [0, 2]);
 }
 
 #[test]
 fn merge_names_missing_cells_and_partial_merges_what_there_is() {
     let dir = tempfile::tempdir().unwrap();
-    let job = setup(dir.path(), "ls");
+    let job = setup(dir.path(), "ls", [1, 1]);
     let expected = reference(dir.path());
     let out = dir.path().join("out");
 
@@ -190,7 +196,7 @@ fn merge_names_missing_cells_and_partial_merges_what_there_is() {
 #[test]
 fn slurm_submits_the_array_then_a_merge_that_depends_on_it() {
     let dir = tempfile::tempdir().unwrap();
-    let job = setup(dir.path(), "ls");
+    let job = setup(dir.path(), "ls", [1, 1]);
     // A stand-in sbatch: logs its arguments and $OESWEEP, answers like --parsable.
     let fake = dir.path().join("bin");
     std::fs::create_dir(&fake).unwrap();
