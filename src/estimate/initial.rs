@@ -16,7 +16,7 @@
 //! `L` = where `h` has decayed to rounding), and the small system is solved by Cholesky with a
 //! tiny ridge: an inexact `x` only makes the judged fit lower, never flattering.
 
-use crate::oe;
+use crate::{kernels, oe};
 
 /// The initial state a fitted model is judged with (the job's `initial_state`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -84,20 +84,24 @@ pub fn add_free_response(f: &[f64], nb: usize, delay: usize, y: &[f64], yhat: &m
     let len = h.iter().rposition(|v| v.abs() > 1e-16 * peak).map_or(1, |i| i + 1);
     let h = &h[..len];
     let r: Vec<f64> = y.iter().zip(yhat.iter()).map(|(a, b)| a - b).collect();
-    // rhs_j = sum_t h[t - j] r[t];  G_ij = sum_{s <= N-1-max(i,j)} h[s] h[s + |i-j|].
+    // rhs_j = sum_t h[t - j] r[t];  G_ij = sum_{s <= N-1-max(i,j)} h[s] h[s + |i-j|], which is
+    // the lag's full product R(lag) = sum_{s < len - lag} h[s] h[s + lag] less at most j end
+    // terms where the record ends before h has decayed (vectorised dot products: O(n L)).
     let rhs: Vec<f64> = (0..n)
         .map(|j| {
             let m = (n_obs - j).min(len);
-            h[..m].iter().zip(&r[j..j + m]).map(|(a, b)| a * b).sum()
+            kernels::dot(&h[..m], &r[j..j + m])
         })
         .collect();
+    let full: Vec<f64> =
+        (0..n).map(|lag| if lag < len { kernels::dot(&h[..len - lag], &h[lag..len]) } else { 0.0 }).collect();
     let mut g = vec![0.0; n * n];
     for i in 0..n {
         for j in 0..=i {
             let lag = i - j;
-            // s + lag < len and s <= N - 1 - i.
-            let m = (n_obs - i).min(len.saturating_sub(lag));
-            let v: f64 = h[..m].iter().zip(&h[lag..lag + m]).map(|(a, b)| a * b).sum();
+            // s runs to min(N - 1 - i, len - 1 - lag); the terms beyond N - 1 - i are the tail.
+            let tail: f64 = (n_obs - i..len.saturating_sub(lag)).map(|s| h[s] * h[s + lag]).sum();
+            let v = full[lag] - tail;
             g[i * n + j] = v;
             g[j * n + i] = v;
         }
