@@ -132,6 +132,20 @@ pub struct Candidate {
     /// The model's output offset (the table's `offset`).
     #[serde(default)]
     pub offset: Option<f64>,
+    /// The evidence of the table's row ([`crate::estimate::evidence`]): parameter standard
+    /// deviations, the largest relative one, and the residual tests' p-values.
+    #[serde(default)]
+    pub b_std: Vec<f64>,
+    #[serde(default)]
+    pub f_std: Vec<f64>,
+    #[serde(default)]
+    pub offset_std: Option<f64>,
+    #[serde(default)]
+    pub max_rel_std: Option<f64>,
+    #[serde(default)]
+    pub resid_white_p: Option<f64>,
+    #[serde(default)]
+    pub resid_indep_p: Option<f64>,
 }
 
 impl Candidate {
@@ -154,6 +168,12 @@ impl Candidate {
             b: row.b.clone(),
             f: row.f.clone(),
             offset: row.offset,
+            b_std: row.b_std.clone(),
+            f_std: row.f_std.clone(),
+            offset_std: row.offset_std,
+            max_rel_std: row.max_rel_std,
+            resid_white_p: row.resid_white_p,
+            resid_indep_p: row.resid_indep_p,
         })
     }
 

@@ -68,6 +68,35 @@ pub struct CellRow {
     /// (`offset` "mean"/"median"); null for "none" ([`crate::data::levels`]).
     #[serde(default)]
     pub offset: Option<f64>,
+    /// Standard deviations of b, f and the estimated offset ([`crate::estimate::evidence`]).
+    #[serde(default)]
+    pub b_std: Vec<f64>,
+    #[serde(default)]
+    pub f_std: Vec<f64>,
+    #[serde(default)]
+    pub offset_std: Option<f64>,
+    /// Largest std / |value| over the parameters (null: not computed).
+    #[serde(default)]
+    pub max_rel_std: Option<f64>,
+    /// p-values of the residual tests: whiteness, independence from the input.
+    #[serde(default)]
+    pub resid_white_p: Option<f64>,
+    #[serde(default)]
+    pub resid_indep_p: Option<f64>,
+}
+
+impl CellRow {
+    /// This row with the evidence of an assessment.
+    fn with_evidence(mut self, e: &crate::estimate::evidence::Evidence) -> Self {
+        self.b_std = e.b_std.clone();
+        self.f_std = e.f_std.clone();
+        self.offset_std = e.offset_std;
+        // Infinity (an undetermined parameter) is kept: Parquet stores it.
+        self.max_rel_std = Some(e.max_rel_std).filter(|v| !v.is_nan());
+        self.resid_white_p = Some(e.resid_white_p).filter(|v| v.is_finite());
+        self.resid_indep_p = Some(e.resid_indep_p).filter(|v| v.is_finite());
+        self
+    }
 }
 
 /// Identity of a row in a table: (is a Huber row, delay, nb, nf, k_index). A complete table
@@ -122,7 +151,9 @@ impl CellRow {
             b: ls.b.clone(),
             f: ls.f.clone(),
             offset: ls.offset,
+            ..Self::empty()
         }
+        .with_evidence(&ls.assessment.evidence)
     }
 
     /// Row of a Huber fit of the order pair whose least-squares fit is `ls`.
@@ -167,7 +198,9 @@ impl CellRow {
             b: h.b.clone(),
             f: h.f.clone(),
             offset: h.offset,
+            ..Self::empty()
         }
+        .with_evidence(&h.assessment.evidence)
     }
 
     /// Row of a cell that could not be estimated at all (panic, failed L2 phase, ...).
@@ -179,6 +212,24 @@ impl CellRow {
             delay: delay as u32,
             k_index: k.map(|(i, _)| i as u32),
             k: k.map(|(_, v)| v),
+            reason: Some(reason),
+            ..Self::empty()
+        }
+    }
+
+    pub fn ok(&self) -> bool {
+        self.status == STATUS_OK
+    }
+
+    /// A row with every outcome empty (the base of the constructors).
+    fn empty() -> Self {
+        CellRow {
+            method: Method::Huber,
+            nb: 0,
+            nf: 0,
+            delay: 0,
+            k_index: None,
+            k: None,
             sigma: None,
             gamma: None,
             criterion: None,
@@ -190,7 +241,7 @@ impl CellRow {
             termination: None,
             converged: false,
             status: STATUS_FAILED.to_string(),
-            reason: Some(reason),
+            reason: None,
             max_pole_radius: None,
             reflections: None,
             start: String::new(),
@@ -198,11 +249,13 @@ impl CellRow {
             b: Vec::new(),
             f: Vec::new(),
             offset: None,
+            b_std: Vec::new(),
+            f_std: Vec::new(),
+            offset_std: None,
+            max_rel_std: None,
+            resid_white_p: None,
+            resid_indep_p: None,
         }
-    }
-
-    pub fn ok(&self) -> bool {
-        self.status == STATUS_OK
     }
 
     /// This row's [`RowKey`].

@@ -36,6 +36,12 @@ fn huber_row(nb: u32, nf: u32, k_index: u32, criterion: f64, fit_val: f64) -> Ce
         b: (0..nb).map(|i| 0.1 * i as f64 - 0.35).collect(),
         f: (0..nf).map(|i| (-1.0f64).powi(i as i32) / (i + 2) as f64).collect(),
         offset: None,
+        b_std: (0..nb).map(|i| 0.01 * (i + 1) as f64).collect(),
+        f_std: (0..nf).map(|i| 0.02 * (i + 1) as f64).collect(),
+        offset_std: None,
+        max_rel_std: Some(f64::INFINITY),
+        resid_white_p: Some(0.5),
+        resid_indep_p: None,
     }
 }
 
@@ -159,8 +165,14 @@ fn parquet_file_has_the_documented_schema() {
         ("start", DataType::String),
         ("seconds", DataType::Float64),
         ("b", list.clone()),
-        ("f", list),
+        ("f", list.clone()),
         ("offset", DataType::Float64),
+        ("b_std", list.clone()),
+        ("f_std", list.clone()),
+        ("offset_std", DataType::Float64),
+        ("max_rel_std", DataType::Float64),
+        ("resid_white_p", DataType::Float64),
+        ("resid_indep_p", DataType::Float64),
     ];
     let got: Vec<(String, DataType)> = df.schema().iter().map(|(n, d)| (n.to_string(), d.clone())).collect();
     let want: Vec<(String, DataType)> = expected.into_iter().map(|(n, d)| (n.to_string(), d)).collect();

@@ -34,11 +34,23 @@ pub(super) fn print_fit_summary(r: &FitReport) {
     println!("{:<22}{:>18}{:>18}", "iterations", l.iterations, h.iterations);
     println!("{:<22}{:>18} {:>17}", "termination", l.termination.as_str(), h.termination.as_str());
     println!("{:<22}{:>18.6}{:>18.6}", "max pole radius", l.assessment.max_pole_radius, h.assessment.max_pole_radius);
+    let (le, he) = (&l.assessment.evidence, &h.assessment.evidence);
+    println!("{:<22}{:>18.3e}{:>18.3e}", "max std/|value|", le.max_rel_std, he.max_rel_std);
+    println!("{:<22}{:>18.4}{:>18.4}", "residuals white p", le.resid_white_p, he.resid_white_p);
+    println!("{:<22}{:>18.4}{:>18.4}", "resid. indep. of u p", le.resid_indep_p, he.resid_indep_p);
     println!();
-    println!("Huber b = {:?}", h.b);
-    println!("Huber f = {:?}", h.f);
+    let with_std = |v: &[f64], s: &[f64]| {
+        v.iter().zip(s).map(|(v, s)| format!("{v:.6e} +/- {s:.1e}")).collect::<Vec<_>>().join(", ")
+    };
+    println!("Huber b = [{}]", with_std(&h.b, &he.b_std));
+    println!("Huber f = [{}]", with_std(&h.f, &he.f_std));
     match h.offset {
-        Some(c) => println!("offset = {c} ({}; input level u0 = {} taken out)", r.offset_mode.as_str(), r.input_level),
+        Some(c) => println!(
+            "offset = {c}{} ({}; input level u0 = {} taken out)",
+            he.offset_std.map_or(String::new(), |s| format!(" +/- {s:.1e}")),
+            r.offset_mode.as_str(),
+            r.input_level
+        ),
         None => println!("offset: none (the paper's model)"),
     }
     println!("initial state of the judged fits: {}", r.initial_state.as_str());

@@ -195,7 +195,7 @@ impl ChainWalk {
 pub enum CellOutcome {
     /// The cell's fit, where it started, and the seconds spent on it (its share of the up walk
     /// and of the backward pass).
-    Fit { fit: HuberFit, start: StartKind, seconds: f64 },
+    Fit { fit: Box<HuberFit>, start: StartKind, seconds: f64 },
     /// The fit panicked (a bug in the numerics): the reason, for a failed row.
     Panicked(String),
 }
@@ -254,7 +254,7 @@ pub fn walk_pair(
             continue;
         }
         let outcome = match cell {
-            Some((fit, start)) => CellOutcome::Fit { fit, start, seconds: seconds[i] + extra[i] },
+            Some((fit, start)) => CellOutcome::Fit { fit: Box::new(fit), start, seconds: seconds[i] + extra[i] },
             None => CellOutcome::Panicked(panic.unwrap_or_else(|| "Huber fit panicked".into())),
         };
         out.push((ks[i].0, outcome));

@@ -9,6 +9,7 @@
 //! shares the [`LsFit`] across all k.
 
 pub mod chains;
+pub mod evidence;
 pub mod huber;
 pub mod init;
 pub mod initial;
@@ -95,9 +96,12 @@ pub struct Assessment {
     /// Fit % of the frequency response against the spectral estimate in the band.
     pub fit_band: Option<f64>,
     pub max_pole_radius: f64,
+    /// Parameter standard deviations and residual tests (METHOD.md 10).
+    #[serde(flatten)]
+    pub evidence: evidence::Evidence,
 }
 
-fn assess(prob: &Problem, theta: &[f64], yhat: &[f64], judge: &Judge) -> Assessment {
+fn assess(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64], judge: &Judge) -> Assessment {
     let (b, f, _) = prob.split(theta);
     let fit_val = judge.validation.map(|(u, y)| {
         let val = Problem { u, y, ..*prob };
@@ -110,6 +114,7 @@ fn assess(prob: &Problem, theta: &[f64], yhat: &[f64], judge: &Judge) -> Assessm
         fit_val: fit_val.filter(|v| v.is_finite()),
         fit_band: fit_band.filter(|v| v.is_finite()),
         max_pole_radius: oe::max_pole_radius(f),
+        evidence: evidence::evidence(prob, theta, loss, yhat),
     }
 }
 
@@ -308,7 +313,7 @@ pub(crate) fn huber_from_solution(
         gamma,
         criterion: sol.criterion,
         l1c: huber::l1_contribution(prob.y, yhat, gamma),
-        assessment: assess(prob, &sol.theta, yhat, judge),
+        assessment: assess(prob, &sol.theta, Loss::Huber { gamma }, yhat, judge),
         iterations: sol.iterations,
         termination: sol.termination,
         reflections: sol.reflections,
@@ -347,7 +352,7 @@ fn ls_fit(prob: &Problem, sol: Solution, judge: &Judge, ws: &Workspace) -> LsFit
         delay: prob.delay,
         criterion: sol.criterion,
         sigma: var.sqrt(),
-        assessment: assess(prob, &sol.theta, yhat, judge),
+        assessment: assess(prob, &sol.theta, Loss::LeastSquares, yhat, judge),
         iterations: sol.iterations,
         termination: sol.termination,
         reflections: sol.reflections,

@@ -18,7 +18,12 @@
 //! | `start` | String | no |
 //! | `seconds` | Float64 | no |
 //! | `b`, `f` | List(Float64) | no (a failed cell has empty lists) |
-//! | `offset` | Float64 | yes (null: the model has no offset; optional on reading, for tables of older versions) |
+//! | `offset` | Float64 | yes (null: the model has no offset) |
+//! | `b_std`, `f_std` | List(Float64) | no (empty for a failed cell) |
+//! | `offset_std`, `max_rel_std`, `resid_white_p`, `resid_indep_p` | Float64 | yes |
+//!
+//! The columns from `offset` on are optional on reading (null or empty when absent): tables of
+//! older versions lack them.
 //!
 //! Compression is zstd (polars' default). The file is written atomically (see [`crate::export`]),
 //! so a sweep can rewrite it as a checkpoint while a reader looks at the previous version.
@@ -115,7 +120,15 @@ const COLUMNS: [(&str, Kind); 24] = [
 ];
 
 /// Columns written after [`COLUMNS`] that tables of older versions lack: null when absent.
-const OPTIONAL: [(&str, Kind); 1] = [("offset", Kind::F64)];
+const OPTIONAL: [(&str, Kind); 7] = [
+    ("offset", Kind::F64),
+    ("b_std", Kind::ListF64),
+    ("f_std", Kind::ListF64),
+    ("offset_std", Kind::F64),
+    ("max_rel_std", Kind::F64),
+    ("resid_white_p", Kind::F64),
+    ("resid_indep_p", Kind::F64),
+];
 
 #[derive(Clone, Copy)]
 enum Kind {
@@ -182,6 +195,12 @@ fn to_frame(rows: &[CellRow]) -> PolarsResult<DataFrame> {
         list_column("b", rows, |r| &r.b),
         list_column("f", rows, |r| &r.f),
         col("offset", rows, |r| r.offset),
+        list_column("b_std", rows, |r| &r.b_std),
+        list_column("f_std", rows, |r| &r.f_std),
+        col("offset_std", rows, |r| r.offset_std),
+        col("max_rel_std", rows, |r| r.max_rel_std),
+        col("resid_white_p", rows, |r| r.resid_white_p),
+        col("resid_indep_p", rows, |r| r.resid_indep_p),
     ];
     debug_assert!(
         columns
@@ -290,12 +309,30 @@ fn from_frame(df: &DataFrame) -> std::result::Result<Vec<CellRow>, String> {
     let seconds = opt_f64(df, "seconds")?;
     let mut b = opt_list(df, "b")?;
     let mut f = opt_list(df, "f")?;
-    let offset = if df.column("offset").is_ok() {
-        column(df, "offset", Kind::F64)?;
-        opt_f64(df, "offset")?
-    } else {
-        vec![None; df.height()]
+    // Optional columns: absent in tables of older versions.
+    let optional_f64 = |name: &str| -> std::result::Result<Vec<Option<f64>>, String> {
+        if df.column(name).is_ok() {
+            column(df, name, Kind::F64)?;
+            opt_f64(df, name)
+        } else {
+            Ok(vec![None; df.height()])
+        }
     };
+    let optional_list = |name: &str| -> std::result::Result<Vec<Option<Vec<f64>>>, String> {
+        if df.column(name).is_ok() {
+            column(df, name, Kind::ListF64)?;
+            opt_list(df, name)
+        } else {
+            Ok(vec![Some(Vec::new()); df.height()])
+        }
+    };
+    let offset = optional_f64("offset")?;
+    let mut b_std = optional_list("b_std")?;
+    let mut f_std = optional_list("f_std")?;
+    let offset_std = optional_f64("offset_std")?;
+    let max_rel_std = optional_f64("max_rel_std")?;
+    let resid_white_p = optional_f64("resid_white_p")?;
+    let resid_indep_p = optional_f64("resid_indep_p")?;
 
     (0..df.height())
         .map(|i| {
@@ -330,6 +367,12 @@ fn from_frame(df: &DataFrame) -> std::result::Result<Vec<CellRow>, String> {
                 b: required("b", i, b[i].take())?,
                 f: required("f", i, f[i].take())?,
                 offset: offset[i],
+                b_std: b_std[i].take().unwrap_or_default(),
+                f_std: f_std[i].take().unwrap_or_default(),
+                offset_std: offset_std[i],
+                max_rel_std: max_rel_std[i],
+                resid_white_p: resid_white_p[i],
+                resid_indep_p: resid_indep_p[i],
             })
         })
         .collect()

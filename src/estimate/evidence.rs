@@ -1,0 +1,199 @@
+//! The evidence that comes with a fitted model (METHOD.md 10): the robust covariance of its
+//! parameters and two residual tests.
+//!
+//! **Covariance.** For an M-estimator of a prediction-error model with influence function
+//! `psi_g` (Huber: `clamp(e, -gamma, gamma)`; least squares: `e`), the asymptotic covariance is
+//! the sandwich
+//!
+//! ```text
+//! Cov(theta) = kappa (sum_t psi_t psi_t^T)^-1,   kappa = mean(psi_g(e)^2) / mean(psi_g'(e))^2
+//! ```
+//!
+//! (Huber 1981, ch. 7; Ljung 1999, 9.3), `psi_t` the predictor gradient of METHOD.md 2 (and 1 for
+//! an offset). For least squares `psi_g' = 1` and `kappa = mean(e^2) = sigma^2`. Reported as the
+//! standard deviations `b_std`, `f_std`, `offset_std`, and `max_rel_std = max_i std_i / |theta_i|`
+//! (infinite when the Gram matrix is singular: parameters the data do not determine).
+//!
+//! **Residual tests**, on the robust residuals `psi_g(e)` so that a spike does not dominate
+//! (Ljung 1999, 16.6):
+//! - whiteness: the portmanteau statistic `Q = N (N+2) sum_{k=1}^{M} rho_k^2 / (N-k)` of their
+//!   autocorrelations `rho_k`, chi-squared with M degrees of freedom (Ljung-Box);
+//! - independence from past inputs: the cross-correlations `r_k` of the residuals with the
+//!   input at lags `k = 0..M`; under independence `sqrt(N) r` is normal with covariance
+//!   `sigma_e^2 R_u` (the input's Toeplitz autocovariance), so
+//!   `zeta = N r^T R_u^-1 r / sigma_e^2` is chi-squared with M + 1 degrees of freedom.
+//!
+//! Both as p-values (`resid_white_p`, `resid_indep_p`), M = 25.
+
+use faer::linalg::solvers::DenseSolveCore;
+use faer::prelude::*;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+use super::huber::Loss;
+use super::normal::NormalEquations;
+use super::solver::Problem;
+use crate::{kernels, oe};
+
+/// Largest lag of the residual tests.
+pub const MAX_LAG: usize = 25;
+
+/// Parameter uncertainty and residual tests of one fitted model.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Evidence {
+    pub b_std: Vec<f64>,
+    pub f_std: Vec<f64>,
+    pub offset_std: Option<f64>,
+    /// Largest std / |value| over the parameters (infinite: an undetermined parameter).
+    pub max_rel_std: f64,
+    pub resid_white_p: f64,
+    pub resid_indep_p: f64,
+}
+
+/// The evidence of the model `theta` of `prob` fitted with `loss`; `yhat` is its output on the
+/// estimation record (zero initial conditions, offset included), as the criterion saw it.
+pub fn evidence(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64]) -> Evidence {
+    let n = prob.n();
+    let r: Vec<f64> = prob.y.iter().zip(yhat).map(|(y, yh)| loss.psi(y - yh)).collect();
+    let slope = match loss {
+        Loss::LeastSquares => 1.0,
+        Loss::Huber { gamma } => {
+            prob.y.iter().zip(yhat).filter(|(y, yh)| (**y - **yh).abs() <= gamma).count() as f64 / n as f64
+        }
+    };
+    let std = parameter_std(prob, theta, &r, slope);
+    let (b, rest) = std.split_at(prob.nb);
+    let (f, c) = rest.split_at(prob.nf);
+    let max_rel_std = std
+        .iter()
+        .zip(theta)
+        .map(|(s, v)| if s.is_finite() { s / v.abs() } else { f64::INFINITY })
+        .fold(0.0, |m: f64, v| if v.is_nan() { f64::INFINITY } else { m.max(v) });
+    Evidence {
+        b_std: b.to_vec(),
+        f_std: f.to_vec(),
+        offset_std: c.first().copied(),
+        max_rel_std,
+        resid_white_p: whiteness_p(&r),
+        resid_indep_p: independence_p(&r, prob.u),
+    }
+}
+
+/// Standard deviations of the parameters (infinite when the Gram matrix is singular).
+fn parameter_std(prob: &Problem, theta: &[f64], r: &[f64], slope: f64) -> Vec<f64> {
+    let d = prob.dim();
+    let n = prob.n();
+    let undetermined = vec![f64::INFINITY; d];
+    if slope <= 0.0 {
+        return undetermined;
+    }
+    let kappa = r.iter().map(|v| v * v).sum::<f64>() / n as f64 / (slope * slope);
+    let (b, f, _) = prob.split(theta);
+    let (mut xu, mut yh, mut xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    oe::simulate_filtered(b, f, prob.delay, prob.u, &mut xu, &mut yh, &mut xy);
+    let lay = prob.layout();
+    let (mut h, mut g) = (vec![0.0; d * d], vec![0.0; d]);
+    let mut ne = NormalEquations::default();
+    ne.build(&lay, &xu, &xy, None, r, &mut h, &mut g);
+    if prob.offset {
+        ne.add_offset(&lay, &xu, &xy, None, r, &mut h, &mut g);
+    }
+    // h = (1/N) sum psi psi^T, so Cov = kappa / N h^-1: the diagonal of the inverse from a
+    // Cholesky factor (scaled by the diagonal first: OE Gram matrices span many decades).
+    let scale: Vec<f64> = (0..d).map(|i| h[i * d + i].sqrt()).collect();
+    if scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        return undetermined;
+    }
+    let a = faer::Mat::<f64>::from_fn(d, d, |i, j| h[i * d + j] / (scale[i] * scale[j]));
+    crate::faer_sequential();
+    let Ok(chol) = a.llt(faer::Side::Lower) else { return undetermined };
+    let inv = chol.inverse();
+    (0..d)
+        .map(|i| {
+            let v = inv[(i, i)] / (scale[i] * scale[i]) * kappa / n as f64;
+            if v.is_finite() && v >= 0.0 { v.sqrt() } else { f64::INFINITY }
+        })
+        .collect()
+}
+
+/// Ljung-Box p-value of the residuals `r` over lags 1..[`MAX_LAG`].
+fn whiteness_p(r: &[f64]) -> f64 {
+    let n = r.len();
+    let m = MAX_LAG.min(n.saturating_sub(2));
+    if m == 0 {
+        return f64::NAN;
+    }
+    let e = centred(r);
+    let mut acf = vec![0.0; m + 1];
+    kernels::lagged_dots(&e, &e, &mut acf);
+    if acf[0] <= 0.0 {
+        return f64::NAN;
+    }
+    let nf = n as f64;
+    let q = nf * (nf + 2.0) * (1..=m).map(|k| (acf[k] / acf[0]).powi(2) / (nf - k as f64)).sum::<f64>();
+    chi2_sf(q, m)
+}
+
+/// p-value of the independence of the residuals `r` from the input `u` at lags 0..[`MAX_LAG`].
+fn independence_p(r: &[f64], u: &[f64]) -> f64 {
+    let n = r.len();
+    let m = MAX_LAG.min(n.saturating_sub(2));
+    let (e, u) = (centred(r), centred(u));
+    let (mut see, mut ruu, mut reu) = (vec![0.0; 1], vec![0.0; m + 1], vec![0.0; m + 1]);
+    kernels::lagged_dots(&e, &e, &mut see);
+    kernels::lagged_dots(&u, &u, &mut ruu);
+    // r_k = (1/N) sum_t e_t u_{t-k} = (1/N) sum_s u_s e_{s+k}.
+    kernels::lagged_dots(&u, &e, &mut reu);
+    let nf = n as f64;
+    let sigma2 = see[0] / nf;
+    if !(sigma2 > 0.0 && ruu[0] > 0.0) {
+        return f64::NAN;
+    }
+    let k = m + 1;
+    let toeplitz = faer::Mat::<f64>::from_fn(k, k, |i, j| ruu[i.abs_diff(j)] / nf);
+    let rhs = faer::Mat::<f64>::from_fn(k, 1, |i, _| reu[i] / nf);
+    crate::faer_sequential();
+    let Ok(chol) = toeplitz.llt(faer::Side::Lower) else { return f64::NAN };
+    let x = chol.solve(&rhs);
+    let zeta = nf * (0..k).map(|i| rhs[(i, 0)] * x[(i, 0)]).sum::<f64>() / sigma2;
+    chi2_sf(zeta, k)
+}
+
+fn centred(x: &[f64]) -> Vec<f64> {
+    let mean = x.iter().sum::<f64>() / x.len() as f64;
+    x.iter().map(|v| v - mean).collect()
+}
+
+/// `P(X > q)` for X chi-squared with `dof` degrees of freedom.
+fn chi2_sf(q: f64, dof: usize) -> f64 {
+    match ChiSquared::new(dof as f64) {
+        Ok(dist) if q.is_finite() => dist.sf(q.max(0.0)),
+        _ => f64::NAN,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn white_noise_passes_and_a_moving_average_fails() {
+        let mut s = 99u64;
+        let mut normal = || {
+            let mut u = || {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (a, b) = (u(), u());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        };
+        let e: Vec<f64> = (0..4000).map(|_| normal()).collect();
+        let u: Vec<f64> = (0..4000).map(|_| normal()).collect();
+        assert!(whiteness_p(&e) > 0.001, "{}", whiteness_p(&e));
+        assert!(independence_p(&e, &u) > 0.001, "{}", independence_p(&e, &u));
+        let ma: Vec<f64> = e.windows(2).map(|w| w[1] + 0.5 * w[0]).collect();
+        assert!(whiteness_p(&ma) < 1e-6);
+        // Residuals that carry the input at lag 3.
+        let leak: Vec<f64> = (0..4000).map(|t| e[t] + if t >= 3 { 0.2 * u[t - 3] } else { 0.0 }).collect();
+        assert!(independence_p(&leak, &u) < 1e-6);
+    }
+}
