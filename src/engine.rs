@@ -22,7 +22,7 @@ use crate::progress::Progress;
 use crate::reduce::{self, ReduceOptions, Selection};
 use crate::shard::{self, Missing, Shard};
 use crate::simulate;
-use crate::spectral::{self, SpectralEstimate, WelchOptions};
+use crate::spectral::{self, SpectralEstimate};
 use crate::sweep::{self, Context};
 use crate::table::{CellRow, Method};
 use std::collections::BTreeSet;
@@ -63,7 +63,7 @@ pub fn prepare(path: &Path) -> Result<Prepared> {
     let inputs = job::load_inputs(&mut job)?;
     let spectral = match job.job.band_hz {
         Some([lo, hi]) => {
-            let s = spectral::welch(&inputs.est.u, &inputs.est.y, job.ts(), &WelchOptions::default())
+            let s = spectral::estimate(&inputs.est.u, &inputs.est.y, job.ts(), job.job.spectrum)
                 .map_err(|e| Error::input(&job.job.data.path, e.to_string()))?;
             let bins = s.band(lo, hi);
             if bins.is_empty() {
@@ -481,6 +481,8 @@ pub struct FitRequest {
     pub offset: data::Offset,
     /// The initial state `fit` and `fit_val` are computed with.
     pub initial_state: InitialState,
+    /// The spectral estimate of `band`.
+    pub spectrum: spectral::Method,
     pub nb: usize,
     pub nf: usize,
     pub k: f64,
@@ -570,7 +572,7 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
     }
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
-            let s = spectral::welch(&est.u, &est.y, ts, &WelchOptions::default())?;
+            let s = spectral::estimate(&est.u, &est.y, ts, req.spectrum)?;
             let bins = s.band(lo, hi);
             Some((s, bins))
         }
@@ -609,6 +611,65 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
         huber,
         seconds,
         ls,
+    })
+}
+
+/// A nonparametric frequency response, `oesweep spectrum`.
+#[derive(Clone, Debug)]
+pub struct SpectrumRequest {
+    pub data: PathBuf,
+    pub u: ColumnRef,
+    pub y: ColumnRef,
+    pub rows: Option<[usize; 2]>,
+    pub ts: f64,
+    pub method: spectral::Method,
+}
+
+/// Report of [`spectrum`] (`spectrum --json` prints it): per usable bin (the input has power
+/// there) the frequency, `G_spec` and the coherence, and an approximate 95 % band of `|G_spec|`
+/// ([`SpectralEstimate::magnitude_band`]).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SpectrumReport {
+    pub data: PathBuf,
+    pub n: usize,
+    pub method: spectral::Method,
+    /// Output samples the robust method replaced.
+    pub replaced: usize,
+    pub segment: usize,
+    pub segments: usize,
+    pub freq_hz: Vec<f64>,
+    pub re: Vec<f64>,
+    pub im: Vec<f64>,
+    pub coherence: Vec<f64>,
+    pub mag_lower: Vec<f64>,
+    pub mag_upper: Vec<f64>,
+}
+
+/// The spectral estimate of one record (see [`SpectrumRequest`]).
+pub fn spectrum(req: &SpectrumRequest) -> Result<SpectrumReport> {
+    job::check_sampling_period(req.ts).map_err(|m| Error::Invalid(format!("--ts {m}")))?;
+    if let Some(r) = req.rows {
+        data::check_rows(r).map_err(|m| Error::Invalid(format!("--rows {m}")))?;
+    }
+    let opts = ReadOptions { rows: req.rows, ..ReadOptions::default() };
+    let rec = data::read_record_with(&req.data, &req.u, &req.y, &opts)?;
+    let est =
+        spectral::estimate(&rec.u, &rec.y, req.ts, req.method).map_err(|e| Error::input(&req.data, e.to_string()))?;
+    let bins: Vec<usize> = (0..est.freq_hz.len()).filter(|&k| est.re[k].is_finite()).collect();
+    let bands: Vec<(f64, f64)> = bins.iter().map(|&k| est.magnitude_band(k).unwrap_or((f64::NAN, f64::NAN))).collect();
+    Ok(SpectrumReport {
+        data: req.data.clone(),
+        n: rec.len(),
+        method: req.method,
+        replaced: est.replaced,
+        segment: est.segment,
+        segments: est.segments,
+        freq_hz: bins.iter().map(|&k| est.freq_hz[k]).collect(),
+        re: bins.iter().map(|&k| est.re[k]).collect(),
+        im: bins.iter().map(|&k| est.im[k]).collect(),
+        coherence: bins.iter().map(|&k| est.coherence[k]).collect(),
+        mag_lower: bands.iter().map(|b| b.0).collect(),
+        mag_upper: bands.iter().map(|b| b.1).collect(),
     })
 }
 

@@ -229,6 +229,9 @@ pub struct Job {
     /// The initial state the fits are judged with ([`InitialState`]).
     #[serde(default)]
     pub initial_state: InitialState,
+    /// The spectral estimate `fit_band` compares with ([`crate::spectral::Method`]).
+    #[serde(default)]
+    pub spectrum: crate::spectral::Method,
     pub grid: Grid,
     #[serde(default)]
     pub band_hz: Option<[f64; 2]>,

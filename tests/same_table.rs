@@ -31,6 +31,7 @@ fn run(dir: &Path, start: &str) -> PathBuf {
         "band_hz": [0, 1500],
         "offset": "none",
         "initial_state": "zero",
+        "spectrum": "welch",
         "start": start,
         "output": dir.join(start),
     });

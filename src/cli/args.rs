@@ -29,6 +29,8 @@ pub enum Command {
     Merge(MergeArgs),
     /// Submit a job to Slurm: an array job of N shards, then a merge job that waits for them.
     Slurm(SlurmArgs),
+    /// Nonparametric frequency response of a record (robust to output spikes by default).
+    Spectrum(SpectrumArgs),
 }
 
 #[derive(Args, Debug)]
@@ -138,9 +140,12 @@ pub struct FitArgs {
     /// Sampling period in seconds (needed for --band).
     #[arg(long)]
     pub ts: Option<f64>,
-    /// Frequency band LO,HI in Hz for the band fit against a Welch spectral estimate.
+    /// Frequency band LO,HI in Hz for the band fit against a spectral estimate.
     #[arg(long, value_parser = parse_band)]
     pub band: Option<(f64, f64)>,
+    /// Spectral estimate of the band fit: robust (spikes cleaned out first) or plain Welch.
+    #[arg(long, value_enum, default_value = "robust")]
+    pub spectrum: SpectrumArg,
     /// Input column: a name, or a 1-based position.
     #[arg(long, default_value = "u")]
     pub u: String,
@@ -169,6 +174,31 @@ pub struct FitArgs {
     #[arg(long, value_enum, default_value = "gauss-newton")]
     pub huber_hessian: HessianArg,
     /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct SpectrumArgs {
+    /// The record (delimited text, Parquet or MATLAB level-5 .mat).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Input column: a name, or a 1-based position.
+    #[arg(long, default_value = "u")]
+    pub u: String,
+    /// Output column: a name, or a 1-based position.
+    #[arg(long, default_value = "y")]
+    pub y: String,
+    /// Sampling period in seconds.
+    #[arg(long)]
+    pub ts: f64,
+    /// Data rows A:B (1-based, inclusive) [default: all].
+    #[arg(long, value_name = "A:B", value_parser = parse_rows)]
+    pub rows: Option<[usize; 2]>,
+    /// robust: the output's spikes cleaned out before Welch's estimate; welch: as it is.
+    #[arg(long, value_enum, default_value = "robust")]
+    pub method: SpectrumArg,
+    /// Print one JSON object (freq_hz, re, im, coherence, mag_lower, mag_upper) instead of a table.
     #[arg(long)]
     pub json: bool,
 }
@@ -269,6 +299,21 @@ impl From<InitialStateArg> for crate::estimate::InitialState {
         match a {
             InitialStateArg::Estimate => crate::estimate::InitialState::Estimate,
             InitialStateArg::Zero => crate::estimate::InitialState::Zero,
+        }
+    }
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum SpectrumArg {
+    Robust,
+    Welch,
+}
+
+impl From<SpectrumArg> for crate::spectral::Method {
+    fn from(a: SpectrumArg) -> Self {
+        match a {
+            SpectrumArg::Robust => crate::spectral::Method::Robust,
+            SpectrumArg::Welch => crate::spectral::Method::Welch,
         }
     }
 }

@@ -29,7 +29,27 @@ pub fn run(cli: Cli) -> Result<u8> {
         }
         Command::Merge(a) => run_merge(&a),
         Command::Slurm(a) => run_slurm(&a),
+        Command::Spectrum(a) => run_spectrum(&a),
     }
+}
+
+/// `oesweep spectrum` ([`engine::spectrum`]).
+fn run_spectrum(a: &args::SpectrumArgs) -> Result<u8> {
+    let req = engine::SpectrumRequest {
+        data: a.data.clone(),
+        u: ColumnRef::parse(&a.u),
+        y: ColumnRef::parse(&a.y),
+        rows: a.rows,
+        ts: a.ts,
+        method: a.method.into(),
+    };
+    let r = engine::spectrum(&req)?;
+    if a.json {
+        println!("{}", serde_json::to_string(&r).expect("report serialises"));
+    } else {
+        print::print_spectrum(&r);
+    }
+    Ok(0)
 }
 
 fn run_fit(a: &FitArgs) -> Result<u8> {
@@ -43,6 +63,7 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
         val_rows: a.val_rows,
         offset: a.offset.into(),
         initial_state: a.initial_state.into(),
+        spectrum: a.spectrum.into(),
         nb: a.nb,
         nf: a.nf,
         k: a.k,

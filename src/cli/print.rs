@@ -120,3 +120,32 @@ pub(super) fn print_report(report: Option<Result<PathBuf>>) -> Result<()> {
     }
     Ok(())
 }
+
+/// `oesweep spectrum`'s table: per usable bin, |G| in dB with its band, phase, coherence.
+pub(super) fn print_spectrum(r: &crate::engine::SpectrumReport) {
+    println!(
+        "{} ({} samples): {} estimate, {} segments of {}{}",
+        r.data.display(),
+        r.n,
+        r.method.as_str(),
+        r.segments,
+        r.segment,
+        if r.replaced > 0 { format!(", {} output samples cleaned", r.replaced) } else { String::new() }
+    );
+    println!(
+        "{:>14} {:>12} {:>12} {:>12} {:>10} {:>10}",
+        "freq_hz", "|G| dB", "lower dB", "upper dB", "phase deg", "coherence"
+    );
+    let db = |v: f64| if v > 0.0 { 20.0 * v.log10() } else { f64::NEG_INFINITY };
+    for k in 0..r.freq_hz.len() {
+        println!(
+            "{:>14.6} {:>12.3} {:>12.3} {:>12.3} {:>10.2} {:>10.4}",
+            r.freq_hz[k],
+            db(r.re[k].hypot(r.im[k])),
+            db(r.mag_lower[k]),
+            db(r.mag_upper[k]),
+            r.im[k].atan2(r.re[k]).to_degrees(),
+            r.coherence[k]
+        );
+    }
+}

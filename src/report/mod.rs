@@ -62,7 +62,6 @@ use crate::job::DataSpec;
 use crate::job::{KGrid, k_values};
 use crate::reduce::Curve;
 use crate::reduce::{Candidate, Selection};
-use crate::spectral::{WelchOptions, welch};
 use crate::table::{CellRow, Method};
 use figures::{Figure, Picked};
 use html::{Section, esc};
@@ -99,6 +98,12 @@ struct JobInfo {
     offset: Offset,
     #[serde(default = "paper_initial_state")]
     initial_state: InitialState,
+    #[serde(default = "plain_welch")]
+    spectrum: crate::spectral::Method,
+}
+
+fn plain_welch() -> crate::spectral::Method {
+    crate::spectral::Method::Welch
 }
 
 fn paper_offset() -> Offset {
@@ -397,7 +402,7 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
     // --- Bode ---
     let mut figs = Vec::new();
     let mut notes = Vec::new();
-    match welch(&s.est.u, &s.est.y, s.ts, &WelchOptions::default()) {
+    match crate::spectral::estimate(&s.est.u, &s.est.y, s.ts, s.job.spectrum) {
         Ok(est) => {
             for p in &picks {
                 let file = format!("{FIGURE_PREFIX}bode-{}.svg", p.name.to_lowercase());

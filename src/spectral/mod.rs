@@ -39,9 +39,49 @@
 //! with `G_model(k) = freq_response(b, f, d, 2 pi f_k Ts)`. 100 is a perfect match, 0 is no
 //! better than `G_model = 0`, and it is negative for worse models (like the time-domain `fit`).
 
+pub mod clean;
+
 use crate::error::{Error, Result};
 use crate::oe::freq_response;
 use std::f64::consts::PI;
+
+/// Which nonparametric estimate judges models (`fit_band`) and is drawn in the report.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// Welch of the record with its output's spikes cleaned out first ([`clean`]).
+    #[default]
+    Robust,
+    /// Plain Welch of the record as it is.
+    Welch,
+}
+
+impl Method {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Method::Robust => "robust",
+            Method::Welch => "welch",
+        }
+    }
+}
+
+/// The spectral estimate of a record by `method` (default Welch settings): the one entry
+/// point for the sweep, `oesweep fit`, `oesweep spectrum` and the report.
+pub fn estimate(u: &[f64], y: &[f64], ts: f64, method: Method) -> Result<SpectralEstimate> {
+    match method {
+        Method::Welch => welch(u, y, ts, &WelchOptions::default()),
+        Method::Robust => {
+            // Checked before cleaning so that its messages are Welch's.
+            if u.len() != y.len() || u.len() < MIN_SAMPLES {
+                return welch(u, y, ts, &WelchOptions::default());
+            }
+            let cleaned = clean::clean(u, y, &clean::CleanOptions::default());
+            let mut est = welch(u, &cleaned.y, ts, &WelchOptions::default())?;
+            est.replaced = cleaned.replaced;
+            Ok(est)
+        }
+    }
+}
 
 /// Shortest record accepted by [`welch`]: two segments of the smallest length.
 const MIN_SAMPLES: usize = 2 * MIN_SEGMENT;
@@ -66,6 +106,10 @@ pub struct SpectralEstimate {
     pub segment: usize,
     /// Sampling period, s.
     pub ts: f64,
+    /// Number of segments averaged.
+    pub segments: usize,
+    /// Output samples replaced by the cleaning of [`Method::Robust`] (0 for plain Welch).
+    pub replaced: usize,
 }
 
 /// Settings of [`welch`].
@@ -155,10 +199,28 @@ pub fn welch(u: &[f64], y: &[f64], ts: f64, opts: &WelchOptions) -> Result<Spect
         }
     }
     let freq_hz = (0..bins).map(|k| k as f64 / (m as f64 * ts)).collect();
-    Ok(SpectralEstimate { freq_hz, re, im, coherence, segment: m, ts })
+    Ok(SpectralEstimate { freq_hz, re, im, coherence, segment: m, ts, segments, replaced: 0 })
 }
 
 impl SpectralEstimate {
+    /// An approximate 95 % band of `|G_spec|` at bin `k`: `|G| (1 -/+ 2 e)` with the normalised
+    /// random error of a gain estimate `e = sqrt(1 - gamma^2) / (|gamma| sqrt(2 K))` (Bendat &
+    /// Piersol, Random Data, 9.3), K segments, gamma^2 the coherence. None where `G_spec` is not
+    /// finite.
+    pub fn magnitude_band(&self, k: usize) -> Option<(f64, f64)> {
+        let (re, im, c) = (self.re[k], self.im[k], self.coherence[k]);
+        if !(re.is_finite() && im.is_finite() && c.is_finite()) {
+            return None;
+        }
+        let mag = re.hypot(im);
+        let e = if c > 0.0 {
+            (1.0 - c).max(0.0).sqrt() / (c.sqrt() * (2.0 * self.segments as f64).sqrt())
+        } else {
+            f64::INFINITY
+        };
+        Some(((mag * (1.0 - 2.0 * e)).max(0.0), mag * (1.0 + 2.0 * e)))
+    }
+
     /// Indices of the usable bins (finite `G_spec`, i.e. the input has power there) with
     /// `lo_hz <= f_k <= hi_hz`, ascending. Empty when `lo_hz > hi_hz` or either is NaN.
     pub fn band(&self, lo_hz: f64, hi_hz: f64) -> Vec<usize> {
