@@ -111,6 +111,7 @@ fn report_writes_page_and_every_linked_figure() {
         "report-bode-m1.svg",
         "report-bode-m2.svg",
         "report-residuals.svg",
+        "report-resid-corr.svg",
         "report-output-estimation.svg",
         "report-output-validation.svg",
     ];
@@ -121,6 +122,9 @@ fn report_writes_page_and_every_linked_figure() {
     // The picks table names the true orders (the sweep test checks the picks are OE(2,2)).
     assert!(html.contains("OE(2,2)"), "picks table");
     assert!(html.contains("fit_val"), "ranking basis named");
+    assert!(html.contains("white p") && html.contains("± "), "evidence of the picks");
+    let corr = std::fs::read_to_string(out.join("report-resid-corr.svg")).unwrap();
+    assert!(corr.contains("99 % bounds") && corr.contains("independence p"), "residual correlation figure");
     let bode = std::fs::read_to_string(out.join("report-bode-m1.svg")).unwrap();
     for label in ["frequency [Hz]", "phase [deg]", "fit band 0 to 200 Hz", "Welch estimate"] {
         assert!(bode.contains(label), "Bode figure lacks {label:?}");

@@ -158,6 +158,22 @@ fn independence_p(r: &[f64], u: &[f64]) -> f64 {
     chi2_sf(zeta, k)
 }
 
+/// The correlation functions the tests are made of (MATLAB's `resid` plots): the
+/// autocorrelation of the residuals `r` at lags 0..=[`MAX_LAG`] and their cross-correlation
+/// with the input, `sum_t r_t u_{t-k} / sqrt(sum r^2 sum u^2)`, at lags 0..=MAX_LAG (means
+/// removed). Under the tests' null hypotheses each is within `2.58 / sqrt(N)` with
+/// probability 0.99 (for the cross-correlation, when the residuals are white).
+pub fn correlation_functions(r: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let m = MAX_LAG.min(r.len().saturating_sub(2));
+    let (e, u) = (centred(r), centred(u));
+    let (mut ree, mut ruu, mut reu) = (vec![0.0; m + 1], vec![0.0; 1], vec![0.0; m + 1]);
+    kernels::lagged_dots(&e, &e, &mut ree);
+    kernels::lagged_dots(&u, &u, &mut ruu);
+    kernels::lagged_dots(&u, &e, &mut reu);
+    let norm = (ree[0] * ruu[0]).sqrt();
+    (ree.iter().map(|v| v / ree[0]).collect(), reu.iter().map(|v| v / norm).collect())
+}
+
 fn centred(x: &[f64]) -> Vec<f64> {
     let mean = x.iter().sum::<f64>() / x.len() as f64;
     x.iter().map(|v| v - mean).collect()

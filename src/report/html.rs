@@ -139,7 +139,8 @@ pub fn picks_table(rows: &[PickRow<'_>], basis_column: &str) -> String {
     let mut h = String::from(
         "<table>\n<tr><th class=\"l\">model</th><th class=\"l\">orders</th><th>k</th><th>γ = kσ</th><th>σ</th>\
          <th>W</th><th>L1C [%]</th><th>fit [%]</th><th>fit_val [%]</th><th>fit_band [%]</th><th>max |pole|</th>\
-         <th>iterations</th><th class=\"l\">termination</th></tr>\n",
+         <th>iterations</th><th class=\"l\">termination</th><th>max std/|θ|</th><th>white p</th><th>indep. p</th>\
+         <th class=\"l\">flags</th></tr>\n",
     );
     for p in rows {
         let r = p.row;
@@ -147,7 +148,7 @@ pub fn picks_table(rows: &[PickRow<'_>], basis_column: &str) -> String {
             h,
             "<tr class=\"{}\"><td class=\"l\">{}</td><td class=\"l\">OE({},{}), d = {}</td><td>{}</td><td>{}</td>\
              <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
-             <td class=\"l\">{}</td></tr>",
+             <td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td></tr>",
             p.class,
             p.name,
             r.nb,
@@ -164,6 +165,10 @@ pub fn picks_table(rows: &[PickRow<'_>], basis_column: &str) -> String {
             opt(r.max_pole_radius, 4),
             r.iterations.map(|v| v.to_string()).unwrap_or_else(|| "–".into()),
             esc(r.termination.as_deref().unwrap_or("–")),
+            opt(r.max_rel_std, 3),
+            opt(r.resid_white_p, 3),
+            opt(r.resid_indep_p, 3),
+            esc(&flags(r).join("; ")),
         );
     }
     h.push_str("</table>\n");
@@ -176,12 +181,42 @@ pub fn picks_table(rows: &[PickRow<'_>], basis_column: &str) -> String {
     h
 }
 
-/// Parameter table of one model: B = b_1 + b_2 q^-1 + ..., F = 1 + f_1 q^-1 + ...
-pub fn parameter_table(title: &str, b: &[f64], f: &[f64]) -> String {
+/// Significance level of the residual tests' flags.
+pub const TEST_LEVEL: f64 = 0.01;
+
+/// What an engineer should look at before building on a model: a failed residual test, a
+/// parameter whose standard deviation exceeds its value.
+pub fn flags(r: &CellRow) -> Vec<&'static str> {
+    let mut out = Vec::new();
+    if r.resid_white_p.is_some_and(|p| p < TEST_LEVEL) {
+        out.push("residuals not white");
+    }
+    if r.resid_indep_p.is_some_and(|p| p < TEST_LEVEL) {
+        out.push("residuals depend on u");
+    }
+    if r.max_rel_std.is_some_and(|v| v > 1.0) {
+        out.push("a parameter's std exceeds its value");
+    }
+    out
+}
+
+/// Parameter table of one model: B = b_1 + b_2 q^-1 + ..., F = 1 + f_1 q^-1 + ..., each with
+/// its standard deviation when known (`b_std`, `f_std`; empty slices: not known).
+pub fn parameter_table(title: &str, (b, b_std): (&[f64], &[f64]), (f, f_std): (&[f64], &[f64])) -> String {
     let mut h = format!("<div><h3>{}</h3>\n<table>\n<tr><th>i</th><th>b_i</th><th>f_i</th></tr>\n", esc(title));
     for i in 0..b.len().max(f.len()) {
-        let cell = |v: Option<&f64>| v.map(|v| format!("{v:.6e}")).unwrap_or_default();
-        let _ = writeln!(h, "<tr><td>{}</td><td>{}</td><td>{}</td></tr>", i + 1, cell(b.get(i)), cell(f.get(i)));
+        let cell = |v: Option<&f64>, s: Option<&f64>| match (v, s) {
+            (Some(v), Some(s)) => format!("{v:.6e} ± {s:.1e}"),
+            (Some(v), None) => format!("{v:.6e}"),
+            _ => String::new(),
+        };
+        let _ = writeln!(
+            h,
+            "<tr><td>{}</td><td>{}</td><td>{}</td></tr>",
+            i + 1,
+            cell(b.get(i), b_std.get(i)),
+            cell(f.get(i), f_std.get(i))
+        );
     }
     h.push_str("</table></div>\n");
     h

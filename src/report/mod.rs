@@ -324,12 +324,23 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
             let m = &p.model;
             let title =
                 format!("{name}: OE({},{}), k = {}, γ = {}", m.nb, m.nf, plot::short(m.k), plot::sig(m.gamma, 4));
-            intro.push_str(&html::parameter_table(&title, &m.b, &m.f));
+            let mut title = title;
+            if let Some(c) = m.offset {
+                title.push_str(&format!(
+                    ", offset {}{}",
+                    plot::sig(c, 6),
+                    m.offset_std.map_or(String::new(), |s| format!(" ± {}", plot::sig(s, 2)))
+                ));
+            }
+            intro.push_str(&html::parameter_table(&title, (&m.b, &m.b_std), (&m.f, &m.f_std)));
         }
     }
     intro.push_str(
         "</div>\n<p class=\"meta\">B(q⁻¹) = b₁ + b₂ q⁻¹ + …, F(q⁻¹) = 1 + f₁ q⁻¹ + …, \
-                    y_t = q⁻ᵈ B/F u_t + e_t (cf. paper Tables 2 and 3).</p>\n",
+                    y_t = q⁻ᵈ B/F (u_t − u₀) + offset + e_t (cf. paper Tables 2 and 3); ± one standard deviation \
+                    (robust covariance, METHOD.md 10). Flags: a residual test failed at the 1 % level (white p: \
+                    whiteness of the robust residuals; indep. p: their independence from u), or some parameter's \
+                    std exceeds its value.</p>\n",
     );
     for (name, pick) in [("M1", &sel.m1), ("M2", &sel.m2)] {
         if let Some(p) = pick {
@@ -433,6 +444,14 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
                 let zero = InitialState::Zero;
                 let (y_ls, y_h) = (s.output_of_row(ls, &s.est, zero), s.output_of_pick(p.model, &s.est, zero));
                 res_figs.push(figure(folder, file, figures::residual_figure(&s.est.y, (ls, &y_ls), (p, &y_h), file))?);
+                // The residual tests' correlation functions, on psi_g(e) and the input less u0.
+                let loss = crate::estimate::Loss::Huber { gamma: p.model.gamma };
+                let r: Vec<f64> = s.est.y.iter().zip(&y_h).map(|(y, yh)| loss.psi(y - yh)).collect();
+                let u: Vec<f64> = s.est.u.iter().map(|v| v - s.u0).collect();
+                let (acf, ccf) = crate::estimate::evidence::correlation_functions(&r, &u);
+                let file = "report-resid-corr.svg";
+                let ps = (p.model.resid_white_p, p.model.resid_indep_p);
+                res_figs.push(figure(folder, file, figures::resid_corr_figure(&acf, &ccf, r.len(), ps, p, file))?);
                 let records = [("estimation", Some(&s.est)), ("validation", s.val.as_ref())];
                 for (name, rec) in records {
                     if let Some(rec) = rec {

@@ -64,6 +64,9 @@ pub fn bode_figure(
     let (plo, phi) =
         padded_range(phase.iter().copied().chain(welch.iter().map(|w| w.2)), 0.05).unwrap_or((-180.0, 180.0));
     let band_text = band.map(|[a, b]| format!("{} to {} Hz", short(a), short(b)));
+    // The robust estimate is Welch's of the output with its spikes cleaned out (METHOD.md 11).
+    let cleaned =
+        if est.replaced > 0 { format!(", {} output spikes cleaned out first", est.replaced) } else { String::new() };
     let title_text =
         format!("Frequency response of {} against the Welch estimate (cf. paper Figs. 11, 13)", pick.label());
     let svg = render((1000, 860), |root| {
@@ -124,7 +127,7 @@ pub fn bode_figure(
         }
         let mut entries = vec![
             (Mark::Line { colour: pick.colour, width: 2, dashed: false }, pick.label()),
-            (Mark::Dot(MEASURED), format!("Welch estimate S_yu/S_uu ({}-sample Hann segments)", est.segment)),
+            (Mark::Dot(MEASURED), format!("Welch estimate S_yu/S_uu ({}-sample Hann segments){cleaned}", est.segment)),
         ];
         if let Some(t) = &band_text {
             entries.push((Mark::Patch(BAND_COLOUR.mix(0.35)), format!("fit band {t}")));
@@ -134,7 +137,8 @@ pub fn bode_figure(
     })?;
     let caption = format!(
         "Magnitude and phase of {} (line) and the nonparametric Welch estimate of the estimation record \
-         (dots), with the magnitude-squared coherence below: where it is low the estimate itself is \
+         (dots; robust by default: samples that a robust prediction filter misses by more than 3 robust \
+         standard deviations are replaced by its prediction first, METHOD.md 11), with the magnitude-squared coherence below: where it is low the estimate itself is \
          unreliable. {}The estimate's phase is drawn within ±180° of the model's. fit_band = {}.",
         pick.label(),
         band_text.map(|t| format!("Shaded: the band {t} of fit_band. ")).unwrap_or_default(),

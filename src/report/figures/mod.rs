@@ -10,6 +10,7 @@ mod curve;
 mod heat;
 mod output;
 mod picks_k;
+mod resid_corr;
 mod residuals;
 
 pub use bode::bode_figure;
@@ -17,6 +18,7 @@ pub use curve::curve_figure;
 pub use heat::heat_figure;
 pub use output::output_figure;
 pub use picks_k::picks_by_k_figure;
+pub use resid_corr::resid_corr_figure;
 pub use residuals::residual_figure;
 
 /// One rendered figure and the text the page shows with it.
