@@ -126,7 +126,9 @@ fn report_writes_page_and_every_linked_figure() {
     let corr = std::fs::read_to_string(out.join("report-resid-corr.svg")).unwrap();
     assert!(corr.contains("99 % bounds") && corr.contains("independence p"), "residual correlation figure");
     let bode = std::fs::read_to_string(out.join("report-bode-m1.svg")).unwrap();
-    for label in ["frequency [Hz]", "phase [deg]", "fit band 0 to 200 Hz", "Welch estimate"] {
+    for label in
+        ["frequency [Hz]", "phase [deg]", "fit band 0 to 200 Hz", "Welch estimate", "± 2 std (robust covariance)"]
+    {
         assert!(bode.contains(label), "Bode figure lacks {label:?}");
     }
     let residuals = std::fs::read_to_string(out.join("report-residuals.svg")).unwrap();

@@ -81,10 +81,37 @@ pub fn evidence(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64]) -> Evid
 /// Standard deviations of the parameters (infinite when the Gram matrix is singular).
 fn parameter_std(prob: &Problem, theta: &[f64], r: &[f64], slope: f64) -> Vec<f64> {
     let d = prob.dim();
+    match covariance_of(prob, theta, r, slope) {
+        Some(cov) => (0..d)
+            .map(|i| {
+                let v = cov[i * d + i];
+                if v.is_finite() && v >= 0.0 { v.sqrt() } else { f64::INFINITY }
+            })
+            .collect(),
+        None => vec![f64::INFINITY; d],
+    }
+}
+
+/// The covariance matrix of `theta` (d x d, row-major; d = `prob.dim()`) of the model fitted
+/// with `loss`, whose output on the estimation record is `yhat`; None when the Gram matrix is
+/// singular.
+pub fn covariance(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64]) -> Option<Vec<f64>> {
+    let r: Vec<f64> = prob.y.iter().zip(yhat).map(|(y, yh)| loss.psi(y - yh)).collect();
+    let slope = match loss {
+        Loss::LeastSquares => 1.0,
+        Loss::Huber { gamma } => {
+            prob.y.iter().zip(yhat).filter(|(y, yh)| (**y - **yh).abs() <= gamma).count() as f64 / prob.n() as f64
+        }
+    };
+    covariance_of(prob, theta, &r, slope)
+}
+
+/// `kappa / N h^-1` with `kappa = mean(r^2) / slope^2` and `h = (1/N) sum psi psi^T`.
+fn covariance_of(prob: &Problem, theta: &[f64], r: &[f64], slope: f64) -> Option<Vec<f64>> {
+    let d = prob.dim();
     let n = prob.n();
-    let undetermined = vec![f64::INFINITY; d];
     if slope <= 0.0 {
-        return undetermined;
+        return None;
     }
     let kappa = r.iter().map(|v| v * v).sum::<f64>() / n as f64 / (slope * slope);
     let (b, f, _) = prob.split(theta);
@@ -97,22 +124,51 @@ fn parameter_std(prob: &Problem, theta: &[f64], r: &[f64], slope: f64) -> Vec<f6
     if prob.offset {
         ne.add_offset(&lay, &xu, &xy, None, r, &mut h, &mut g);
     }
-    // h = (1/N) sum psi psi^T, so Cov = kappa / N h^-1: the diagonal of the inverse from a
-    // Cholesky factor (scaled by the diagonal first: OE Gram matrices span many decades).
+    // The inverse from a Cholesky factor of the diagonally scaled matrix (OE Gram matrices
+    // span many decades).
     let scale: Vec<f64> = (0..d).map(|i| h[i * d + i].sqrt()).collect();
     if scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-        return undetermined;
+        return None;
     }
     let a = faer::Mat::<f64>::from_fn(d, d, |i, j| h[i * d + j] / (scale[i] * scale[j]));
     crate::faer_sequential();
-    let Ok(chol) = a.llt(faer::Side::Lower) else { return undetermined };
+    let chol = a.llt(faer::Side::Lower).ok()?;
     let inv = chol.inverse();
-    (0..d)
-        .map(|i| {
-            let v = inv[(i, i)] / (scale[i] * scale[i]) * kappa / n as f64;
-            if v.is_finite() && v >= 0.0 { v.sqrt() } else { f64::INFINITY }
-        })
-        .collect()
+    Some((0..d * d).map(|ij| inv[(ij / d, ij % d)] / (scale[ij / d] * scale[ij % d]) * kappa / n as f64).collect())
+}
+
+/// `|G(e^{jw})|` of the model (b, f, delay) and its standard deviation from `cov` (of
+/// `[b, f]`, or `[b, f, c]`: the offset does not enter G), to first order through the gradient
+/// `dG/db_i = q^(d+i)/F`, `dG/df_j = -G q^j/F` (q = e^{-jw}), `d|G| = Re(conj(G) dG)/|G|`.
+pub fn gain_std(b: &[f64], f: &[f64], delay: usize, cov: &[f64], w: f64) -> (f64, f64) {
+    let d = (cov.len() as f64).sqrt().round() as usize;
+    let (gr, gi) = oe::freq_response(b, f, delay, w);
+    let mag = gr.hypot(gi);
+    // 1/F at w: G / (q^d B), computed directly.
+    let (mut fr, mut fi) = (1.0, 0.0);
+    for (j, c) in f.iter().enumerate() {
+        let ph = -w * (j + 1) as f64;
+        fr += c * ph.cos();
+        fi += c * ph.sin();
+    }
+    let den = fr * fr + fi * fi;
+    let (ir, ii) = (fr / den, -fi / den);
+    let mut grad = vec![0.0; d];
+    for (i, gv) in grad.iter_mut().take(b.len()).enumerate() {
+        let ph = -w * (delay + i) as f64;
+        let (dr, di) = (ph.cos() * ir - ph.sin() * ii, ph.cos() * ii + ph.sin() * ir);
+        *gv = (gr * dr + gi * di) / mag;
+    }
+    for j in 0..f.len() {
+        let ph = -w * (j + 1) as f64;
+        // -G q^j / F
+        let (qr, qi) = (ph.cos(), ph.sin());
+        let (tr, ti) = (gr * qr - gi * qi, gr * qi + gi * qr);
+        let (dr, di) = (-(tr * ir - ti * ii), -(tr * ii + ti * ir));
+        grad[b.len() + j] = (gr * dr + gi * di) / mag;
+    }
+    let var: f64 = (0..d).map(|i| (0..d).map(|k| grad[i] * cov[i * d + k] * grad[k]).sum::<f64>()).sum();
+    (mag, var.max(0.0).sqrt())
 }
 
 /// Ljung-Box p-value of the residuals `r` over lags 1..[`MAX_LAG`].
@@ -190,6 +246,36 @@ fn chi2_sf(q: f64, dof: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The gradient of |G| in theta against central differences: with a covariance that has
+    /// one parameter's variance only, the reported std is |d|G|/dtheta_i| times its std.
+    #[test]
+    fn gain_gradient_matches_finite_differences() {
+        let (b, f) = ([0.3, -0.1, 0.05], [-1.2, 0.5]);
+        let d = 5;
+        for w in [0.05, 0.7, 2.5] {
+            for i in 0..d {
+                let mut cov = vec![0.0; d * d];
+                cov[i * d + i] = 1e-4;
+                let (mag, std) = gain_std(&b, &f, 2, &cov, w);
+                let gain = |t: &[f64]| {
+                    let (re, im) = oe::freq_response(&t[..3], &t[3..], 2, w);
+                    re.hypot(im)
+                };
+                let theta: Vec<f64> = b.iter().chain(&f).copied().collect();
+                let (mut tp, mut tm) = (theta.clone(), theta.clone());
+                tp[i] += 1e-6;
+                tm[i] -= 1e-6;
+                let fd = (gain(&tp) - gain(&tm)) / 2e-6;
+                assert!((gain(&theta) - mag).abs() < 1e-12);
+                assert!(
+                    (std - fd.abs() * 1e-2).abs() <= 1e-6 * (1.0 + fd.abs()),
+                    "w {w}, theta {i}: {std} vs {}",
+                    fd.abs() * 1e-2
+                );
+            }
+        }
+    }
 
     #[test]
     fn white_noise_passes_and_a_moving_average_fails() {

@@ -142,6 +142,26 @@ impl Sweep {
         model_output(&r.b, &r.f, r.delay as usize, r.offset, self.u0, &rec.u, &rec.y, is)
     }
 
+    /// The robust covariance of a pick's parameters on the estimation record (None when its
+    /// Gram matrix is singular), the model rebuilt as the run fitted it: levels taken out, the
+    /// offset a parameter when the job estimated it.
+    fn covariance(&self, c: &Candidate) -> Option<Vec<f64>> {
+        let levels = Levels::of(self.job.offset, &self.est);
+        let mut rec = self.est.clone();
+        levels.apply(&mut rec);
+        let prob = crate::estimate::Problem {
+            u: &rec.u,
+            y: &rec.y,
+            nb: c.nb as usize,
+            nf: c.nf as usize,
+            delay: c.delay as usize,
+            offset: self.job.offset.estimated(),
+        };
+        let theta = crate::estimate::theta_of(&c.b, &c.f, levels.estimated_c(c.offset));
+        let yhat = prob.simulate_vec(&theta);
+        crate::estimate::evidence::covariance(&prob, &theta, crate::estimate::Loss::Huber { gamma: c.gamma }, &yhat)
+    }
+
     /// A pick's model output on a record, in the data's units.
     fn output_of_pick(&self, c: &Candidate, rec: &Record, is: InitialState) -> Vec<f64> {
         model_output(&c.b, &c.f, c.delay as usize, c.offset, self.u0, &rec.u, &rec.y, is)
@@ -417,7 +437,13 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
         Ok(est) => {
             for p in &picks {
                 let file = format!("{FIGURE_PREFIX}bode-{}.svg", p.name.to_lowercase());
-                figs.push(figure(folder, &file, figures::bode_figure(&est, s.job.band_hz, *p, &file))?);
+                let cov = s.covariance(p.model);
+                let m = p.model;
+                let gain = |w: f64| {
+                    crate::estimate::evidence::gain_std(&m.b, &m.f, m.delay as usize, cov.as_deref().unwrap_or(&[]), w)
+                };
+                let gain_band: Option<&dyn Fn(f64) -> (f64, f64)> = cov.is_some().then_some(&gain);
+                figs.push(figure(folder, &file, figures::bode_figure(&est, s.job.band_hz, *p, gain_band, &file))?);
             }
         }
         Err(e) => notes.push(format!("No spectral estimate of the estimation record: {e}")),

@@ -15,10 +15,14 @@ fn wrap180(d: f64) -> f64 {
 
 /// Bode magnitude (dB) and phase (deg) of one pick against the Welch estimate, with the fit band
 /// shaded and the coherence below (paper Figs. 11 and 13).
+/// `gain_band`, when given, maps a normalised frequency w (rad/sample) to the model's |G| and
+/// its standard deviation (the robust covariance through the gradient of G, METHOD.md 10): the
+/// figure draws |G| +/- 2 std.
 pub fn bode_figure(
     est: &SpectralEstimate,
     band: Option<[f64; 2]>,
     pick: Picked<'_>,
+    gain_band: Option<&dyn Fn(f64) -> (f64, f64)>,
     file: &str,
 ) -> std::result::Result<Figure, String> {
     let m = &pick.model;
@@ -41,6 +45,23 @@ pub fn bode_figure(
         prev = p;
     }
     let freq_fine = |j: usize| nyquist * j as f64 / (fine - 1) as f64;
+    // The band's colour: the pick's, lightened towards white.
+    let light = {
+        let l = |c: u8| c + ((255 - c) as f64 * 0.55) as u8;
+        RGBColor(l(pick.colour.0), l(pick.colour.1), l(pick.colour.2))
+    };
+    // |G| +/- 2 std in dB (the lower edge floored 100 dB below |G| where the band reaches 0).
+    let confidence: Vec<(f64, f64, f64)> = gain_band
+        .map(|gb| {
+            (0..fine)
+                .filter_map(|j| {
+                    let (g, s) = gb(rad_per_fine * j as f64);
+                    let db = |v: f64| 20.0 * v.max(g * 1e-5).log10();
+                    (g > 0.0 && s.is_finite()).then(|| (freq_fine(j), db(g - 2.0 * s), db(g + 2.0 * s)))
+                })
+                .collect()
+        })
+        .unwrap_or_default();
     // The estimate's phase is drawn on the model's branch (within ±180° of it), so a 360° jump at
     // one noisy bin cannot offset the rest of the curve as a plain unwrap would.
     let mut welch: Vec<(f64, f64, f64, f64)> = Vec::new();
@@ -69,9 +90,10 @@ pub fn bode_figure(
         if est.replaced > 0 { format!(", {} output spikes cleaned out first", est.replaced) } else { String::new() };
     let title_text =
         format!("Frequency response of {} against the Welch estimate (cf. paper Figs. 11, 13)", pick.label());
-    let svg = render((1000, 860), |root| {
+    let svg = render((1000, 900), |root| {
         let body = title(root, &title_text, 17.0)?;
-        let (head, body) = body.split_vertically(40);
+        // Room for three legend rows (the model, the estimate, its band and the fit band).
+        let (head, body) = body.split_vertically(80);
         let (mag_area, rest) = body.split_vertically(350);
         let (phase_area, coh_area) = rest.split_vertically(260);
         let fx = || axis(0.0, nyquist, nice_ticks(0.0, nyquist, 10));
@@ -107,6 +129,13 @@ pub fn bode_figure(
             }
             match i {
                 0 => {
+                    // The model's +/- 2 std band, clipped to the panel.
+                    for edge in [1usize, 2] {
+                        chart.draw_series(LineSeries::new(
+                            confidence.iter().map(|c| (c.0, if edge == 1 { c.1 } else { c.2 }.clamp(lo, hi))),
+                            light.stroke_width(1),
+                        ))?;
+                    }
                     chart.draw_series(welch.iter().map(|w| Circle::new((w.0, w.1), 2, MEASURED.filled())))?;
                     chart.draw_series(LineSeries::new(
                         (0..fine).map(|j| (freq_fine(j), mag[j])).filter(|p| p.1.is_finite()),
@@ -129,6 +158,12 @@ pub fn bode_figure(
             (Mark::Line { colour: pick.colour, width: 2, dashed: false }, pick.label()),
             (Mark::Dot(MEASURED), format!("Welch estimate S_yu/S_uu ({}-sample Hann segments){cleaned}", est.segment)),
         ];
+        if !confidence.is_empty() {
+            entries.push((
+                Mark::Line { colour: light, width: 1, dashed: false },
+                "|G| ± 2 std (robust covariance)".into(),
+            ));
+        }
         if let Some(t) = &band_text {
             entries.push((Mark::Patch(BAND_COLOUR.mix(0.35)), format!("fit band {t}")));
         }
@@ -138,7 +173,9 @@ pub fn bode_figure(
     let caption = format!(
         "Magnitude and phase of {} (line) and the nonparametric Welch estimate of the estimation record \
          (dots; robust by default: samples that a robust prediction filter misses by more than 3 robust \
-         standard deviations are replaced by its prediction first, METHOD.md 11), with the magnitude-squared coherence below: where it is low the estimate itself is \
+         standard deviations are replaced by its prediction first, METHOD.md 11); the thin light lines are |G| ± 2 \
+         standard deviations of the model (its robust parameter covariance through the gradient of G, METHOD.md 10); \
+         with the magnitude-squared coherence below: where it is low the estimate itself is \
          unreliable. {}The estimate's phase is drawn within ±180° of the model's. fit_band = {}.",
         pick.label(),
         band_text.map(|t| format!("Shaded: the band {t} of fit_band. ")).unwrap_or_default(),
