@@ -45,6 +45,8 @@ pub fn bode_figure(
         prev = p;
     }
     let freq_fine = |j: usize| nyquist * j as f64 / (fine - 1) as f64;
+    // A logarithmic frequency axis (x = log10 f) from the first point above 0 Hz to Nyquist.
+    let (x_lo, x_hi) = (freq_fine(1).log10(), nyquist.log10());
     // The band's colour: the pick's, lightened towards white.
     let light = {
         let l = |c: u8| c + ((255 - c) as f64 * 0.55) as u8;
@@ -54,10 +56,11 @@ pub fn bode_figure(
     let confidence: Vec<(f64, f64, f64)> = gain_band
         .map(|gb| {
             (0..fine)
+                .skip(1)
                 .filter_map(|j| {
                     let (g, s) = gb(rad_per_fine * j as f64);
                     let db = |v: f64| 20.0 * v.max(g * 1e-5).log10();
-                    (g > 0.0 && s.is_finite()).then(|| (freq_fine(j), db(g - 2.0 * s), db(g + 2.0 * s)))
+                    (g > 0.0 && s.is_finite()).then(|| (freq_fine(j).log10(), db(g - 2.0 * s), db(g + 2.0 * s)))
                 })
                 .collect()
         })
@@ -67,11 +70,11 @@ pub fn bode_figure(
     let mut welch: Vec<(f64, f64, f64, f64)> = Vec::new();
     for k in 0..bins {
         let (re, im) = (est.re[k], est.im[k]);
-        if re.is_finite() && im.is_finite() {
+        if re.is_finite() && im.is_finite() && est.freq_hz[k] > 0.0 {
             let p = im.atan2(re).to_degrees();
             let reference = phase[k * REFINE];
             welch.push((
-                est.freq_hz[k],
+                est.freq_hz[k].log10(),
                 20.0 * re.hypot(im).log10(),
                 reference + wrap180(p - reference),
                 est.coherence[k],
@@ -96,7 +99,7 @@ pub fn bode_figure(
         let (head, body) = body.split_vertically(80);
         let (mag_area, rest) = body.split_vertically(350);
         let (phase_area, coh_area) = rest.split_vertically(260);
-        let fx = || axis(0.0, nyquist, nice_ticks(0.0, nyquist, 10));
+        let fx = || log_axis(x_lo, x_hi);
         let panels = [
             (&mag_area, mlo, mhi, "|G| [dB, output unit per input unit]", nice_ticks(mlo, mhi, 7), 20),
             (&phase_area, plo, phi, "phase [deg]", phase_ticks(plo, phi), 20),
@@ -123,7 +126,8 @@ pub fn bode_figure(
                 mesh.x_label_formatter(&|_| String::new());
             }
             mesh.draw()?;
-            if let Some([a, b]) = band {
+            if let Some([a, b]) = band.filter(|[_, b]| b.log10() > x_lo) {
+                let (a, b) = (a.log10().max(x_lo), b.log10());
                 chart
                     .draw_series(std::iter::once(Rectangle::new([(a, lo), (b, hi)], BAND_COLOUR.mix(0.18).filled())))?;
             }
@@ -138,14 +142,14 @@ pub fn bode_figure(
                     }
                     chart.draw_series(welch.iter().map(|w| Circle::new((w.0, w.1), 2, MEASURED.filled())))?;
                     chart.draw_series(LineSeries::new(
-                        (0..fine).map(|j| (freq_fine(j), mag[j])).filter(|p| p.1.is_finite()),
+                        (1..fine).map(|j| (freq_fine(j).log10(), mag[j])).filter(|p| p.1.is_finite()),
                         pick.colour.stroke_width(2),
                     ))?;
                 }
                 1 => {
                     chart.draw_series(welch.iter().map(|w| Circle::new((w.0, w.2), 2, MEASURED.filled())))?;
                     chart.draw_series(LineSeries::new(
-                        (0..fine).map(|j| (freq_fine(j), phase[j])),
+                        (1..fine).map(|j| (freq_fine(j).log10(), phase[j])),
                         pick.colour.stroke_width(2),
                     ))?;
                 }
