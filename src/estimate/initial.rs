@@ -16,6 +16,7 @@
 //! `L` = where `h` has decayed to rounding), and the small system is solved by Cholesky with a
 //! tiny ridge: an inexact `x` only makes the judged fit lower, never flattering.
 
+use super::solver::{cholesky, cholesky_solve};
 use crate::{kernels, oe};
 
 /// The initial state a fitted model is judged with (the job's `initial_state`).
@@ -133,35 +134,12 @@ fn solve_ridged(g: &[f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
         }
         if cholesky(&mut l, n) {
             let mut x = b.to_vec();
-            for i in 0..n {
-                let s = x[i] - (0..i).map(|k| l[i * n + k] * x[k]).sum::<f64>();
-                x[i] = s / l[i * n + i];
-            }
-            for i in (0..n).rev() {
-                let s = x[i] - (i + 1..n).map(|k| l[k * n + i] * x[k]).sum::<f64>();
-                x[i] = s / l[i * n + i];
-            }
+            cholesky_solve(&l, n, &mut x);
             return x.iter().all(|v| v.is_finite()).then_some(x);
         }
         ridge *= 1e3;
     }
     None
-}
-
-fn cholesky(a: &mut [f64], n: usize) -> bool {
-    for j in 0..n {
-        let s = a[j * n + j] - (0..j).map(|k| a[j * n + k] * a[j * n + k]).sum::<f64>();
-        if !(s > 0.0 && s.is_finite()) {
-            return false;
-        }
-        let d = s.sqrt();
-        a[j * n + j] = d;
-        for i in j + 1..n {
-            let s = a[i * n + j] - (0..j).map(|k| a[i * n + k] * a[j * n + k]).sum::<f64>();
-            a[i * n + j] = s / d;
-        }
-    }
-    true
 }
 
 #[cfg(test)]

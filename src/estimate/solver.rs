@@ -282,7 +282,7 @@ impl Workspace {
 }
 
 /// In-place Cholesky of the d x d row-major SPD matrix `a` (lower factor); false if not SPD.
-fn cholesky(a: &mut [f64], d: usize) -> bool {
+pub(crate) fn cholesky(a: &mut [f64], d: usize) -> bool {
     for j in 0..d {
         let mut s = a[j * d + j];
         for k in 0..j {
@@ -304,7 +304,8 @@ fn cholesky(a: &mut [f64], d: usize) -> bool {
     true
 }
 
-fn cholesky_solve(l: &[f64], d: usize, x: &mut [f64]) {
+/// Solves `L L^T x = b` in place (`x` holds b) with the factor of [`cholesky`].
+pub(crate) fn cholesky_solve(l: &[f64], d: usize, x: &mut [f64]) {
     for i in 0..d {
         let mut s = x[i];
         for k in 0..i {
