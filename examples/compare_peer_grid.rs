@@ -15,8 +15,8 @@
 //! - `ls`: every peer cell on its own from theta_LS and each extra start.
 //!
 //! Prints the share of cells where oesweep is no worse, the worst cases, and the work done.
-//! Environment: OESWEEP_EXTRA_STARTS and OESWEEP_HUBER_TOL override `solver.huber_extra_starts`
-//! and `solver.huber_tol`.
+//! Environment: OESWEEP_EXTRA_STARTS, OESWEEP_HUBER_TOL and OESWEEP_METHOD override
+//! `solver.huber_extra_starts`, `solver.huber_tol` and `solver.method`.
 
 use oesweep::estimate::{self, Judge, Problem, SolverOptions, Workspace};
 use rayon::prelude::*;
@@ -63,6 +63,9 @@ fn main() {
     }
     if let Ok(v) = std::env::var("OESWEEP_HUBER_TOL") {
         opts.huber_tol = v.parse().expect("a number");
+    }
+    if let Ok(v) = std::env::var("OESWEEP_METHOD") {
+        opts.method = serde_json::from_value(serde_json::Value::String(v)).expect("lm or separable");
     }
     let tol = 1e-4;
     let judge = Judge::default();

@@ -67,7 +67,10 @@ fn main() {
         std::process::exit(2);
     }
 
-    let opts = SolverOptions::default();
+    let mut opts = SolverOptions::default();
+    if let Ok(v) = std::env::var("OESWEEP_METHOD") {
+        opts.method = serde_json::from_value(serde_json::Value::String(v)).expect("lm or separable");
+    }
     let hopts = opts.huber();
     let mut ws = Workspace::new();
     let mut ls: Option<((usize, usize), estimate::LsFit)> = None;

@@ -8,7 +8,7 @@
 use crate::data::{self, ColumnRef, Delimiter, Header, Levels, Offset, ReadOptions, Record};
 use crate::error::{Error, Result};
 use crate::estimate::InitialState;
-use crate::estimate::{HuberHessian, SolverOptions};
+use crate::estimate::{HuberHessian, Method, SolverOptions};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -176,6 +176,7 @@ pub struct SolverSettings {
     pub huber_hessian: HuberHessian,
     pub huber_tol: f64,
     pub huber_extra_starts: usize,
+    pub method: Method,
 }
 
 impl Default for SolverSettings {
@@ -191,6 +192,7 @@ impl Default for SolverSettings {
             huber_hessian: o.huber_hessian,
             huber_tol: o.huber_tol,
             huber_extra_starts: o.huber_extra_starts,
+            method: o.method,
         }
     }
 }
@@ -208,6 +210,7 @@ impl SolverSettings {
             huber_hessian: self.huber_hessian,
             huber_tol: self.huber_tol,
             huber_extra_starts: self.huber_extra_starts,
+            method: self.method,
         }
     }
 }

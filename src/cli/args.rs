@@ -1,7 +1,7 @@
 //! The command line's arguments (clap).
 
 use crate::checkpoint;
-use crate::estimate::{HuberHessian, SolverOptions};
+use crate::estimate::{HuberHessian, Method, SolverOptions};
 use crate::shard::Shard;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
@@ -173,6 +173,10 @@ pub struct FitArgs {
     /// Huber Hessian: exact Gauss-Newton (L1 rows weight 0) or IRLS (weight gamma/|e|).
     #[arg(long, value_enum, default_value = "gauss-newton")]
     pub huber_hessian: HessianArg,
+    /// Solver: Levenberg-Marquardt over all parameters, or variable projection (F searched,
+    /// b and the offset solved for).
+    #[arg(long, value_enum, default_value = "lm")]
+    pub method: MethodArg,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,
@@ -249,6 +253,22 @@ impl From<HessianArg> for HuberHessian {
         match a {
             HessianArg::GaussNewton => HuberHessian::GaussNewton,
             HessianArg::Irls => HuberHessian::Irls,
+        }
+    }
+}
+
+/// `--method` ([`Method`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    Lm,
+    Separable,
+}
+
+impl From<MethodArg> for Method {
+    fn from(a: MethodArg) -> Self {
+        match a {
+            MethodArg::Lm => Method::Lm,
+            MethodArg::Separable => Method::Separable,
         }
     }
 }

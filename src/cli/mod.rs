@@ -74,6 +74,7 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
             max_iterations: a.max_iterations,
             ftol: a.ftol,
             huber_hessian: a.huber_hessian.into(),
+            method: a.method.into(),
             ..Default::default()
         },
     };

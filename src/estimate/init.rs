@@ -13,23 +13,61 @@ use crate::oe;
 use faer::Mat;
 use faer::prelude::*;
 
-/// Regressor matrix with columns `[s1_{t-d-i+1}]_{i=1..nb}` and `[-s2_{t-j}]_{j=1..nf}`, and
-/// with an output offset a column of ones: `F (y - c) = B u` is `y = B u - sum f_j y_{t-j} +
-/// F(1) c`, linear in `F(1) c`.
-fn regressors(prob: &Problem, s2: &[f64]) -> Mat<f64> {
-    let (u, nb, nf, delay) = (prob.u, prob.nb, prob.nf, prob.delay);
-    let n = u.len();
-    Mat::from_fn(n, prob.dim(), |t, c| {
-        if c < nb {
-            let lag = delay + c;
-            if t >= lag { u[t - lag] } else { 0.0 }
-        } else if c < nb + nf {
-            let lag = c - nb + 1;
-            if t >= lag { -s2[t - lag] } else { 0.0 }
-        } else {
-            1.0
-        }
-    })
+/// Entry (t, c) of the regressor matrix with columns `[u_{t-d-i+1}]_{i=1..nb}` and
+/// `[-s2_{t-j}]_{j=1..nf}`, and with an output offset a column of ones: `F (y - c) = B u` is
+/// `y = B u - sum f_j y_{t-j} + F(1) c`, linear in `F(1) c`. Column `dim` is `y_t` itself
+/// (the right-hand side rides along as one more column).
+fn regressor(prob: &Problem, s2: &[f64], t: usize, c: usize) -> f64 {
+    let (nb, nf, delay) = (prob.nb, prob.nf, prob.delay);
+    if c < nb {
+        let lag = delay + c;
+        if t >= lag { prob.u[t - lag] } else { 0.0 }
+    } else if c < nb + nf {
+        let lag = c - nb + 1;
+        if t >= lag { -s2[t - lag] } else { 0.0 }
+    } else if c < prob.dim() {
+        1.0
+    } else {
+        prob.y[t]
+    }
+}
+
+/// Rows per block of the streamed products below: the regressions never hold more than this
+/// many rows, so their memory does not grow with N (a whole N x d regressor matrix, and the
+/// packing buffers faer's blocked QR keeps per thread for it, took 80 MB per worker at
+/// N = 131 072).
+const BLOCK: usize = 256;
+
+/// The triangular factor R of the n x `cols` matrix `A = [a(t, c)]` (`R^T R = A^T A`), by QR of
+/// `[R; next block of rows]` block after block.
+fn r_factor(n: usize, cols: usize, a: impl Fn(usize, usize) -> f64) -> Mat<f64> {
+    let mut r = Mat::<f64>::zeros(0, cols);
+    for t0 in (0..n).step_by(BLOCK) {
+        let m = BLOCK.min(n - t0);
+        let k = r.nrows();
+        let stacked = Mat::from_fn(k + m, cols, |i, c| if i < k { r[(i, c)] } else { a(t0 + i - k, c) });
+        r = stacked.qr().thin_R().to_owned();
+    }
+    r
+}
+
+/// `Z^T A` for the n-row matrices `Z = [z(t, i)]` (`zc` columns) and `A = [a(t, c)]` (`ac`
+/// columns), summed block by block.
+fn cross_product(
+    n: usize,
+    zc: usize,
+    ac: usize,
+    z: impl Fn(usize, usize) -> f64,
+    a: impl Fn(usize, usize) -> f64,
+) -> Mat<f64> {
+    let mut out = Mat::<f64>::zeros(zc, ac);
+    for t0 in (0..n).step_by(BLOCK) {
+        let m = BLOCK.min(n - t0);
+        let zb = Mat::from_fn(m, zc, |i, c| z(t0 + i, c));
+        let ab = Mat::from_fn(m, ac, |i, c| a(t0 + i, c));
+        out += zb.transpose() * &ab;
+    }
+    out
 }
 
 /// The regression's last coefficient `F(1) c` as the offset c (F is stable, so F(1) > 0).
@@ -44,13 +82,19 @@ fn finite(v: &[f64]) -> bool {
     v.iter().all(|x| x.is_finite())
 }
 
-/// ARX least-squares estimate (via QR), F stabilised. None when the regression is degenerate.
+/// ARX least-squares estimate, F stabilised. None when the regression is degenerate. The
+/// streamed factor R of `[Phi | y]` turns the N-row problem into the equivalent (d+1)-row
+/// one `min ||R_Phi theta - r_y||`, which column-pivoted QR solves (rank-revealing, as the
+/// whole regression would be).
 pub fn arx(prob: &Problem) -> Option<Vec<f64>> {
     crate::faer_sequential();
-    let phi = regressors(prob, prob.y);
-    let rhs = Mat::from_fn(prob.n(), 1, |t, _| prob.y[t]);
-    let sol = phi.col_piv_qr().solve_lstsq(&rhs);
-    let mut theta: Vec<f64> = (0..prob.dim()).map(|i| sol[(i, 0)]).collect();
+    let d = prob.dim();
+    let r = r_factor(prob.n(), d + 1, |t, c| regressor(prob, prob.y, t, c));
+    let rows = r.nrows();
+    let lhs = Mat::from_fn(rows, d, |i, c| r[(i, c)]);
+    let rhs = Mat::from_fn(rows, 1, |i, _| r[(i, d)]);
+    let sol = lhs.col_piv_qr().solve_lstsq(&rhs);
+    let mut theta: Vec<f64> = (0..d).map(|i| sol[(i, 0)]).collect();
     if !finite(&theta) {
         return None;
     }
@@ -67,12 +111,13 @@ fn iv_step(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
     if !finite(&x) {
         return None;
     }
-    let phi = regressors(prob, prob.y);
-    let z = regressors(prob, &x);
-    let zt_phi = z.transpose() * &phi;
-    let zt_y = z.transpose() * Mat::from_fn(prob.n(), 1, |t, _| prob.y[t]);
+    let d = prob.dim();
+    // Z^T [Phi | y]: the system and its right-hand side in one product.
+    let zt = cross_product(prob.n(), d, d + 1, |t, c| regressor(prob, &x, t, c), |t, c| regressor(prob, prob.y, t, c));
+    let zt_phi = Mat::from_fn(d, d, |i, c| zt[(i, c)]);
+    let zt_y = Mat::from_fn(d, 1, |i, _| zt[(i, d)]);
     let sol = zt_phi.partial_piv_lu().solve(&zt_y);
-    let mut th: Vec<f64> = (0..prob.dim()).map(|i| sol[(i, 0)]).collect();
+    let mut th: Vec<f64> = (0..d).map(|i| sol[(i, 0)]).collect();
     if !finite(&th) {
         return None;
     }

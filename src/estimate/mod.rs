@@ -14,12 +14,13 @@ pub mod huber;
 pub mod init;
 pub mod initial;
 pub mod normal;
+pub mod separable;
 pub mod solver;
 
 pub use chains::{ChainWalk, Chains, PairProblem};
 pub use huber::Loss;
 pub use initial::InitialState;
-pub use solver::{HuberHessian, Problem, Solution, SolverOptions, Termination, Workspace};
+pub use solver::{HuberHessian, Method, Problem, Solution, SolverOptions, Termination, Workspace};
 
 use crate::oe;
 use crate::spectral::SpectralEstimate;

@@ -74,6 +74,8 @@ fn compact_rows(rows: &mut Vec<u32>, alpha: Option<&mut Vec<f64>>, w: &[f64], sk
 
 /// Below this many weighted rows the rank-1 updates beat packing them for a matrix product.
 const PACK_MIN_ROWS: usize = 64;
+/// Rows packed per product in [`NormalEquations::add_rows`] (128 KB at d = 29: stays in L2).
+const PACK_BLOCK: usize = 512;
 
 pub use crate::kernels::dot;
 use crate::kernels::{lagged_dots, rank1_upper};
@@ -277,41 +279,47 @@ impl NormalEquations {
             }
             return;
         }
-        // Rows of P, padded to a multiple of 4 columns for the kernel's vector loads. Row t is
-        // xu[t-delay-nb+1 ..= t-delay] and -xy[t-nf ..= t-1], both reversed.
+        // Rows of P, padded to a multiple of 4 columns for the kernel's vector loads, packed
+        // PACK_BLOCK rows at a time so the buffers stay small whatever N (a whole m x d
+        // matrix was 30 N-length vectors at OE(14,15)). Row t is xu[t-delay-nb+1 ..= t-delay]
+        // and -xy[t-nf ..= t-1], both reversed.
         let dp = d.div_ceil(4) * 4;
-        self.packed.resize(m * dp, 0.0);
         let (nb, dl) = (lay.nb, lay.delay);
         let first_full = (dl + nb).max(lay.nf + 1).max(dl + 1) - 1;
-        for (row, &t) in self.packed.chunks_exact_mut(dp).zip(&self.rows) {
-            let t = t as usize;
-            if t >= first_full {
-                let (ru, ry) = row[..d].split_at_mut(nb);
-                for (r, &v) in ru.iter_mut().zip(xu[t + 1 - dl - nb..=t - dl].iter().rev()) {
-                    *r = v;
-                }
-                for (r, &v) in ry.iter_mut().zip(xy[t - lay.nf..t].iter().rev()) {
-                    *r = -v;
-                }
-            } else {
-                lay.row(xu, xy, t, &mut row[..d]);
-            }
-            row[d..].fill(0.0);
-        }
         // One weight for all rows (the Gauss-Newton Huber Hessian: -1 or 1) needs no copy.
         let uniform = self.alpha.iter().all(|&a| a == self.alpha[0]);
         let scale = if uniform { self.alpha[0] } else { 1.0 };
+        self.packed.resize(PACK_BLOCK.min(m) * dp, 0.0);
         if !uniform {
-            self.scaled.resize(m * dp, 0.0);
-            for ((dst, src), &a) in self.scaled.chunks_exact_mut(dp).zip(self.packed.chunks_exact(dp)).zip(&self.alpha)
-            {
-                for (q, &p) in dst.iter_mut().zip(src) {
-                    *q = a * p;
+            self.scaled.resize(PACK_BLOCK.min(m) * dp, 0.0);
+        }
+        for (rows, alpha) in self.rows.chunks(PACK_BLOCK).zip(self.alpha.chunks(PACK_BLOCK)) {
+            let mb = rows.len();
+            for (row, &t) in self.packed.chunks_exact_mut(dp).zip(rows) {
+                let t = t as usize;
+                if t >= first_full {
+                    let (ru, ry) = row[..d].split_at_mut(nb);
+                    for (r, &v) in ru.iter_mut().zip(xu[t + 1 - dl - nb..=t - dl].iter().rev()) {
+                        *r = v;
+                    }
+                    for (r, &v) in ry.iter_mut().zip(xy[t - lay.nf..t].iter().rev()) {
+                        *r = -v;
+                    }
+                } else {
+                    lay.row(xu, xy, t, &mut row[..d]);
+                }
+                row[d..].fill(0.0);
+            }
+            if !uniform {
+                for ((dst, src), &a) in self.scaled.chunks_exact_mut(dp).zip(self.packed.chunks_exact(dp)).zip(alpha) {
+                    for (q, &p) in dst.iter_mut().zip(src) {
+                        *q = a * p;
+                    }
                 }
             }
+            let q = if uniform { &self.packed[..mb * dp] } else { &self.scaled[..mb * dp] };
+            crate::kernels::syrk_upper(h, d, &self.packed[..mb * dp], q, dp, mb, scale);
         }
-        let q = if uniform { &self.packed[..m * dp] } else { &self.scaled[..m * dp] };
-        crate::kernels::syrk_upper(h, d, &self.packed[..m * dp], q, dp, m, scale);
     }
 
     /// Upper triangle of the unweighted `J^T J` from lagged dot products (no 1/N).

@@ -23,6 +23,7 @@
 
 use super::huber::Loss;
 use super::normal::{Layout, NormalEquations};
+use super::separable;
 use crate::oe;
 
 /// How the Huber Hessian weights the L1 rows.
@@ -33,6 +34,27 @@ pub enum HuberHessian {
     GaussNewton,
     /// Iteratively reweighted least squares: L1 rows get weight g/|e|.
     Irls,
+}
+
+/// How the parameters are searched.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// Levenberg-Marquardt over all of theta = [b, f, c].
+    #[default]
+    Lm,
+    /// Variable projection: Levenberg-Marquardt over F, with [b, c] solved for each F
+    /// ([`super::separable`], METHOD.md 5.6).
+    Separable,
+}
+
+impl Method {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Method::Lm => "lm",
+            Method::Separable => "separable",
+        }
+    }
 }
 
 /// Solver settings (the job file's schema of them is [`crate::job::SolverSettings`]). Defaults
@@ -65,6 +87,8 @@ pub struct SolverOptions {
     /// (and a contracted theta_LS when it sits on the stability boundary). 0 = the paper's
     /// single start.
     pub huber_extra_starts: usize,
+    /// Full Levenberg-Marquardt or variable projection.
+    pub method: Method,
 }
 
 impl Default for SolverOptions {
@@ -79,6 +103,7 @@ impl Default for SolverOptions {
             huber_hessian: HuberHessian::GaussNewton,
             huber_tol: 1e-8,
             huber_extra_starts: 2,
+            method: Method::Lm,
         }
     }
 }
@@ -243,6 +268,7 @@ pub struct Workspace {
     theta: Vec<f64>,
     trial: Vec<f64>,
     ne: NormalEquations,
+    inner: super::separable::Inner,
     /// Criterion after each accepted step (first entry: the start), when `record_trace`.
     pub trace: Vec<f64>,
     pub record_trace: bool,
@@ -343,6 +369,16 @@ fn add_offset(yhat: &mut [f64], c: f64) {
     }
 }
 
+/// `xy = (1/F) (yhat - c)`: the F columns' signal of the Jacobian, from a separable
+/// evaluation's output.
+fn output_filtered(prob: &Problem, theta: &[f64], yhat: &[f64], xy: &mut [f64]) {
+    let (_, f, c) = prob.split(theta);
+    for (x, &v) in xy.iter_mut().zip(yhat) {
+        *x = v - c;
+    }
+    oe::inv_f_in_place(f, xy);
+}
+
 /// Minimise `loss` over theta = [b, f] (or [b, f, c], see [`Problem::offset`]) from `theta0`.
 /// The returned F is stable.
 pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions, ws: &mut Workspace) -> Solution {
@@ -365,10 +401,27 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
     // yhat = q^-d B (1/F) u = B applied to xu = (1/F) u (LTI operators commute, zero initial
     // conditions): one pass gives the simulation and both Jacobian signals (xu and
     // xy = (1/F) yhat), so an accepted trial point needs no further filtering.
-    let (b0, f0, c0) = prob.split(&ws.theta);
-    oe::simulate_filtered(b0, f0, prob.delay, prob.u, &mut ws.xu, &mut ws.yhat, &mut ws.xy);
-    add_offset(&mut ws.yhat, c0);
-    let mut crit = loss.criterion(prob.y, &ws.yhat);
+    let separable = opts.method == Method::Separable;
+    let mut crit = if separable {
+        let ws = &mut *ws;
+        let c = separable::project(
+            prob,
+            loss,
+            &mut ws.theta,
+            &mut ws.xu,
+            &mut ws.yhat,
+            &mut ws.r,
+            &mut ws.w,
+            &mut ws.inner,
+        );
+        output_filtered(prob, &ws.theta, &ws.yhat, &mut ws.xy);
+        c
+    } else {
+        let (b0, f0, c0) = prob.split(&ws.theta);
+        oe::simulate_filtered(b0, f0, prob.delay, prob.u, &mut ws.xu, &mut ws.yhat, &mut ws.xy);
+        add_offset(&mut ws.yhat, c0);
+        loss.criterion(prob.y, &ws.yhat)
+    };
     let finish = |ws: &mut Workspace, crit, iterations, termination, reflections, lambda| Solution {
         theta: ws.theta.clone(),
         criterion: crit,
@@ -438,7 +491,9 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
         loop {
             ws.a.copy_from_slice(&ws.h);
             for i in 0..d {
-                ws.a[i * d + i] += lambda * ws.h[i * d + i].max(floor);
+                // Variable projection damps F only: b and c are solved for, not stepped.
+                let damped = !separable || (prob.nb..prob.nb + prob.nf).contains(&i);
+                ws.a[i * d + i] += if damped { lambda * ws.h[i * d + i].max(floor) } else { floor };
             }
             if !cholesky(&mut ws.a, d) {
                 lambda = raised(lambda, nu);
@@ -477,18 +532,49 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
                 oe::reflect_unstable(prob.f_mut(&mut ws.trial));
                 reflected = true;
             }
-            let (tb, tf, tc) = prob.split(&ws.trial);
-            oe::simulate_filtered(tb, tf, prob.delay, prob.u, &mut ws.trial_xu, &mut ws.trial_yhat, &mut ws.trial_xy);
-            add_offset(&mut ws.trial_yhat, tc);
-            let new_crit = loss.criterion(prob.y, &ws.trial_yhat);
+            let new_crit = if separable {
+                // r and w were used up by this iteration's normal equations: scratch now.
+                let ws = &mut *ws;
+                separable::project(
+                    prob,
+                    loss,
+                    &mut ws.trial,
+                    &mut ws.trial_xu,
+                    &mut ws.trial_yhat,
+                    &mut ws.r,
+                    &mut ws.w,
+                    &mut ws.inner,
+                )
+            } else {
+                let (tb, tf, tc) = prob.split(&ws.trial);
+                oe::simulate_filtered(
+                    tb,
+                    tf,
+                    prob.delay,
+                    prob.u,
+                    &mut ws.trial_xu,
+                    &mut ws.trial_yhat,
+                    &mut ws.trial_xy,
+                );
+                add_offset(&mut ws.trial_yhat, tc);
+                loss.criterion(prob.y, &ws.trial_yhat)
+            };
             if new_crit.is_finite() && new_crit < crit {
                 let rho = if pred > 0.0 { (crit - new_crit) / pred } else { 0.0 };
                 lambda *= f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3));
                 nu = 2.0;
-                let step = norm2(&ws.delta);
+                // The separable step moved b and c to their inner optimum, not by delta.
+                let step = if separable {
+                    ws.trial.iter().zip(&ws.theta).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt()
+                } else {
+                    norm2(&ws.delta)
+                };
                 let rel_actual = (crit - new_crit) / crit;
                 let rel_pred = pred.abs() / crit;
                 let small_step = step <= opts.xtol * (norm2(&ws.theta) + opts.xtol);
+                if separable {
+                    output_filtered(prob, &ws.trial, &ws.trial_yhat, &mut ws.trial_xy);
+                }
                 std::mem::swap(&mut ws.theta, &mut ws.trial);
                 std::mem::swap(&mut ws.yhat, &mut ws.trial_yhat);
                 std::mem::swap(&mut ws.xu, &mut ws.trial_xu);

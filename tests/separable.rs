@@ -1,0 +1,178 @@
+//! The separable (variable projection) solver, `solver.method = "separable"` (METHOD.md 5.6):
+//! known solutions, the inner optimum, the invariants of the outer iteration, and agreement
+//! with the full Levenberg-Marquardt solver on noisy data.
+
+mod common;
+
+use common::*;
+use oesweep::estimate::normal::{Layout, NormalEquations};
+use oesweep::estimate::{self, Judge, Loss, Method, Problem, SolverOptions, Workspace, solver};
+use oesweep::oe;
+
+fn separable() -> SolverOptions {
+    SolverOptions { method: Method::Separable, ..SolverOptions::default() }
+}
+
+/// Noisy OE(3,3)-ish data with 5 % spikes (deterministic).
+fn spiky(n: usize, offset: f64) -> (Vec<f64>, Vec<f64>) {
+    let (b, f) = oe22();
+    let u = binary_input(n, 4, 2.0, 11);
+    let y0 = oe::simulate_vec(&b, &f, 1, &u);
+    let mut rng = Lcg(5);
+    let y = y0
+        .iter()
+        .map(|v| {
+            let spike = if rng.next() < 0.05 { 3.0 * (rng.next() - 0.5) * 10.0 } else { 0.0 };
+            v + offset + 0.05 * rng.normal() + spike
+        })
+        .collect();
+    (u, y)
+}
+
+#[test]
+fn noise_free_data_recovers_the_true_parameters_from_a_poor_start() {
+    for (b, f, n) in [(oe22().0, oe22().1, 2000), (oe1010().0, oe1010().1, 5000)] {
+        for offset in [None, Some(97.0)] {
+            let u = binary_input(n, 3, 10.0, 7);
+            let mut y = oe::simulate_vec(&b, &f, 1, &u);
+            y.iter_mut().for_each(|v| *v += offset.unwrap_or(0.0));
+            let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: offset.is_some() };
+            let truth = estimate::theta_of(&b, &f, offset);
+            // F's poles pulled towards the origin, B halved, no offset: the inner problem
+            // must find b and c, the outer one F.
+            let mut start = estimate::theta_of(&b, &f, offset.map(|_| 0.0));
+            for v in &mut start[..b.len()] {
+                *v *= 0.5;
+            }
+            for (j, v) in start[b.len()..b.len() + f.len()].iter_mut().enumerate() {
+                *v *= 0.97f64.powi(j as i32 + 1);
+            }
+            let mut ws = Workspace::new();
+            let scale = (y.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
+            for loss in [Loss::LeastSquares, Loss::Huber { gamma: 0.05 * scale }] {
+                let sol = solver::minimise(&prob, loss, &start, &separable(), &mut ws);
+                assert!(
+                    sol.termination.converged(),
+                    "nb={} offset={offset:?} {loss:?} {:?} crit {:e} it {} theta {:?}",
+                    b.len(),
+                    sol.termination,
+                    sol.criterion,
+                    sol.iterations,
+                    sol.theta
+                );
+                let worst =
+                    sol.theta.iter().zip(&truth).map(|(g, t)| (g - t).abs() / t.abs().max(1.0)).fold(0.0, f64::max);
+                assert!(worst < 1e-6, "nb={} offset={offset:?} {loss:?}: worst relative error {worst:e}", b.len());
+            }
+        }
+    }
+}
+
+/// At a separable solution, b and c are the optimum for its F: the gradient of the criterion in
+/// them vanishes (to rounding for least squares, to the inner tolerance for Huber).
+#[test]
+fn the_linear_parameters_are_at_their_inner_optimum() {
+    let (u, y) = spiky(3000, 5.0);
+    let prob = Problem { u: &u, y: &y, nb: 3, nf: 2, delay: 1, offset: true };
+    let mut ws = Workspace::new();
+    let start = vec![0.1, 0.0, 0.0, -1.0, 0.5, 0.0];
+    for loss in [Loss::LeastSquares, Loss::Huber { gamma: 0.1 }] {
+        let sol = solver::minimise(&prob, loss, &start, &separable(), &mut ws);
+        assert!(sol.usable());
+        let (b, f, c) = prob.split(&sol.theta);
+        let mut xu = vec![0.0; u.len()];
+        let mut yhat = vec![0.0; u.len()];
+        let mut xy = vec![0.0; u.len()];
+        oe::simulate_filtered(b, f, 1, &u, &mut xu, &mut yhat, &mut xy);
+        let r: Vec<f64> = y.iter().zip(&yhat).map(|(a, p)| loss.psi(a - p - c)).collect();
+        let lay = Layout { nb: 3, nf: 2, delay: 1 };
+        let (mut h, mut g) = (vec![0.0; 36], vec![0.0; 6]);
+        let mut ne = NormalEquations::default();
+        ne.build(&lay, &xu, &xy, None, &r, &mut h, &mut g);
+        ne.add_offset(&lay, &xu, &xy, None, &r, &mut h, &mut g);
+        // Relative to the size of the gradient's terms: mean |psi| times the signal level.
+        let level = r.iter().map(|v| v.abs()).sum::<f64>() / r.len() as f64 * 2.0;
+        for i in [0, 1, 2, 5] {
+            assert!(g[i].abs() <= 1e-9 * level, "{loss:?}: d criterion / d beta_{i} = {:e}", g[i]);
+        }
+    }
+}
+
+#[test]
+fn the_criterion_falls_on_every_accepted_step_and_f_stays_stable() {
+    let (u, y) = spiky(4000, 0.0);
+    let prob = Problem { u: &u, y: &y, nb: 4, nf: 4, delay: 1, offset: false };
+    let mut ws = Workspace::new();
+    ws.record_trace = true;
+    let judge = Judge::default();
+    let ls = estimate::fit_ls(&prob, &judge, &separable(), &mut ws);
+    assert!(ls.ok());
+    for k in [0.05, 0.3, 2.0] {
+        let h = estimate::fit_huber(&prob, ls.sigma, k, &ls.theta(), &judge, &separable(), &mut ws);
+        assert!(ws.trace.len() >= 2, "k={k}: no step taken");
+        for w in ws.trace.windows(2) {
+            assert!(w[1] < w[0], "k={k}: W rose from {} to {}", w[0], w[1]);
+        }
+        assert!(oe::is_stable(&h.f), "k={k}");
+    }
+}
+
+/// On the same data and from the same start both methods reach the same minimum.
+#[test]
+fn separable_and_full_levenberg_marquardt_agree() {
+    let (u, y) = spiky(5000, 2.0);
+    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: true };
+    let judge = Judge::default();
+    let mut ws = Workspace::new();
+    let lm = SolverOptions::default();
+    let ls_lm = estimate::fit_ls(&prob, &judge, &lm, &mut ws);
+    let ls_vp = estimate::fit_ls(&prob, &judge, &separable(), &mut ws);
+    assert!(
+        (ls_lm.criterion - ls_vp.criterion).abs() <= 1e-9 * ls_lm.criterion,
+        "{} {}",
+        ls_lm.criterion,
+        ls_vp.criterion
+    );
+    for k in [0.05, 0.2, 1.0] {
+        let a = estimate::fit_huber(&prob, ls_lm.sigma, k, &ls_lm.theta(), &judge, &lm, &mut ws);
+        let b = estimate::fit_huber(&prob, ls_lm.sigma, k, &ls_lm.theta(), &judge, &separable(), &mut ws);
+        assert!((a.criterion - b.criterion).abs() <= 1e-7 * a.criterion, "k={k}: {} vs {}", a.criterion, b.criterion);
+        for (p, q) in a.theta().iter().zip(b.theta()) {
+            assert!((p - q).abs() <= 1e-4 * p.abs().max(1e-3), "k={k}: {:?} vs {:?}", a.theta(), b.theta());
+        }
+    }
+}
+
+/// The job field: a sweep with `solver.method = "separable"` runs and says so in job.json.
+#[test]
+fn a_job_selects_the_separable_solver() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = spiky(1500, 0.0);
+    let mut csv = String::from("u,y\n");
+    for (a, b) in u.iter().zip(&y) {
+        csv.push_str(&format!("{a},{b}\n"));
+    }
+    std::fs::write(dir.path().join("d.csv"), csv).unwrap();
+    let job = serde_json::json!({
+        "name": "vp",
+        "data": {"path": dir.path().join("d.csv"), "ts": 1e-3, "rows": [1, 1000]},
+        "validation": {"rows": [1001, 1500]},
+        "grid": {"nb": [1, 3], "nf": [1, 3], "k": {"from": 0.1, "to": 1.0, "count": 3}},
+        "solver": {"method": "separable"},
+        "output": dir.path().join("out"),
+    });
+    let path = dir.path().join("job.json");
+    std::fs::write(&path, job.to_string()).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .args(["run", path.to_str().unwrap(), "--threads", "2", "--quiet"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/job.json")).unwrap()).unwrap();
+    assert_eq!(written["solver"]["method"], "separable");
+    let sel: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/selection.json")).unwrap()).unwrap();
+    // The L1C pick is the true structure.
+    assert_eq!((&sel["m2"]["nb"], &sel["m2"]["nf"]), (&serde_json::json!(2), &serde_json::json!(2)));
+}
