@@ -49,39 +49,58 @@ pub struct Evidence {
     pub resid_indep_p: f64,
 }
 
-/// The evidence of the model `theta` of `prob` fitted with `loss`; `yhat` is its output on the
-/// estimation record (zero initial conditions, offset included), as the criterion saw it.
-pub fn evidence(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64]) -> Evidence {
-    let n = prob.n();
-    let r: Vec<f64> = prob.y.iter().zip(yhat).map(|(y, yh)| loss.psi(y - yh)).collect();
-    let slope = match loss {
-        Loss::LeastSquares => 1.0,
-        Loss::Huber { gamma } => {
-            prob.y.iter().zip(yhat).filter(|(y, yh)| (**y - **yh).abs() <= gamma).count() as f64 / n as f64
+/// Buffers of [`evidence`], one per worker (in the solver's [`super::Workspace`]): the robust
+/// residuals, their centred copy, the Gram matrix, and the centred input with its
+/// autocorrelation, which are the same for every model of a record and so computed once per
+/// record.
+#[derive(Default, Debug)]
+pub struct Scratch {
+    r: Vec<f64>,
+    e: Vec<f64>,
+    h: Vec<f64>,
+    g: Vec<f64>,
+    ne: NormalEquations,
+    /// The input `uc` and `ruu` were computed from.
+    input_of: Vec<f64>,
+    uc: Vec<f64>,
+    ruu: Vec<f64>,
+}
+
+impl Scratch {
+    /// The centred input and its autocorrelation at lags 0..=m, computed when `u` changed.
+    fn input(&mut self, u: &[f64], m: usize) {
+        // Compared by value (one pass, far cheaper than the m + 1 lagged products): a
+        // record's buffer may be freed and its address reused by another record.
+        if self.input_of == u && self.ruu.len() == m + 1 {
+            return;
         }
-    };
-    let std = parameter_std(prob, theta, &r, slope);
-    let (b, rest) = std.split_at(prob.nb);
-    let (f, c) = rest.split_at(prob.nf);
-    let max_rel_std = std
-        .iter()
-        .zip(theta)
-        .map(|(s, v)| if s.is_finite() { s / v.abs() } else { f64::INFINITY })
-        .fold(0.0, |m: f64, v| if v.is_nan() { f64::INFINITY } else { m.max(v) });
-    Evidence {
-        b_std: b.to_vec(),
-        f_std: f.to_vec(),
-        offset_std: c.first().copied(),
-        max_rel_std,
-        resid_white_p: whiteness_p(&r),
-        resid_indep_p: independence_p(&r, prob.u),
+        centre_into(u, &mut self.uc);
+        self.ruu.resize(m + 1, 0.0);
+        kernels::lagged_dots(&self.uc, &self.uc, &mut self.ruu);
+        self.input_of.clear();
+        self.input_of.extend_from_slice(u);
     }
 }
 
-/// Standard deviations of the parameters (infinite when the Gram matrix is singular).
-fn parameter_std(prob: &Problem, theta: &[f64], r: &[f64], slope: f64) -> Vec<f64> {
+/// The evidence of the model `theta` of `prob` fitted with `loss`; `yhat` is its output on the
+/// estimation record (zero initial conditions, offset included), as the criterion saw it, and
+/// `xu = (1/F) u`, `xy = (1/F) (yhat - c)` its Jacobian signals (the solver's, reused).
+pub fn evidence(
+    prob: &Problem,
+    theta: &[f64],
+    loss: Loss,
+    yhat: &[f64],
+    xu: &[f64],
+    xy: &[f64],
+    s: &mut Scratch,
+) -> Evidence {
+    let n = prob.n();
+    s.r.clear();
+    s.r.extend(prob.y.iter().zip(yhat).map(|(y, yh)| loss.psi(y - yh)));
+    let slope = slope(prob, loss, yhat);
     let d = prob.dim();
-    match covariance_of(prob, theta, r, slope) {
+    let cov = covariance_in(prob, xu, xy, slope, s);
+    let std: Vec<f64> = match cov {
         Some(cov) => (0..d)
             .map(|i| {
                 let v = cov[i * d + i];
@@ -89,7 +108,43 @@ fn parameter_std(prob: &Problem, theta: &[f64], r: &[f64], slope: f64) -> Vec<f6
             })
             .collect(),
         None => vec![f64::INFINITY; d],
+    };
+    let (b, rest) = std.split_at(prob.nb);
+    let (f, c) = rest.split_at(prob.nf);
+    let max_rel_std = std
+        .iter()
+        .zip(theta)
+        .map(|(s, v)| if s.is_finite() { s / v.abs() } else { f64::INFINITY })
+        .fold(0.0, |m: f64, v| if v.is_nan() { f64::INFINITY } else { m.max(v) });
+    centre_into(&s.r, &mut s.e);
+    let m = MAX_LAG.min(n.saturating_sub(2));
+    s.input(prob.u, m);
+    Evidence {
+        b_std: b.to_vec(),
+        f_std: f.to_vec(),
+        offset_std: c.first().copied(),
+        max_rel_std,
+        resid_white_p: whiteness_p(&s.e),
+        resid_indep_p: independence_p(&s.e, &s.uc, &s.ruu),
     }
+}
+
+/// `mean psi_g'(e)`: 1 for least squares, the share of the L2 set for Huber.
+fn slope(prob: &Problem, loss: Loss, yhat: &[f64]) -> f64 {
+    match loss {
+        Loss::LeastSquares => 1.0,
+        Loss::Huber { gamma } => {
+            prob.y.iter().zip(yhat).filter(|(y, yh)| (**y - **yh).abs() <= gamma).count() as f64 / prob.n() as f64
+        }
+    }
+}
+
+/// [`covariance_of`] with the residuals in `s.r` and the Gram matrix in `s`' buffers.
+fn covariance_in(prob: &Problem, xu: &[f64], xy: &[f64], slope: f64, s: &mut Scratch) -> Option<Vec<f64>> {
+    let d = prob.dim();
+    s.h.resize(d * d, 0.0);
+    s.g.resize(d, 0.0);
+    covariance_of(prob, xu, xy, &s.r, slope, &mut s.ne, &mut s.h, &mut s.g)
 }
 
 /// The covariance matrix of `theta` (d x d, row-major; d = `prob.dim()`) of the model fitted
@@ -97,32 +152,39 @@ fn parameter_std(prob: &Problem, theta: &[f64], r: &[f64], slope: f64) -> Vec<f6
 /// singular.
 pub fn covariance(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64]) -> Option<Vec<f64>> {
     let r: Vec<f64> = prob.y.iter().zip(yhat).map(|(y, yh)| loss.psi(y - yh)).collect();
-    let slope = match loss {
-        Loss::LeastSquares => 1.0,
-        Loss::Huber { gamma } => {
-            prob.y.iter().zip(yhat).filter(|(y, yh)| (**y - **yh).abs() <= gamma).count() as f64 / prob.n() as f64
-        }
-    };
-    covariance_of(prob, theta, &r, slope)
+    let (b, f, _) = prob.split(theta);
+    let n = prob.n();
+    let (mut xu, mut yh, mut xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    oe::simulate_filtered(b, f, prob.delay, prob.u, &mut xu, &mut yh, &mut xy);
+    let d = prob.dim();
+    let (mut h, mut g) = (vec![0.0; d * d], vec![0.0; d]);
+    let slope = slope(prob, loss, yhat);
+    covariance_of(prob, &xu, &xy, &r, slope, &mut NormalEquations::default(), &mut h, &mut g)
 }
 
-/// `kappa / N h^-1` with `kappa = mean(r^2) / slope^2` and `h = (1/N) sum psi psi^T`.
-fn covariance_of(prob: &Problem, theta: &[f64], r: &[f64], slope: f64) -> Option<Vec<f64>> {
+/// `kappa / N h^-1` with `kappa = mean(r^2) / slope^2` and `h = (1/N) sum psi psi^T` from the
+/// Jacobian signals `xu`, `xy` (`h`, `g`: d x d and d buffers).
+#[allow(clippy::too_many_arguments)]
+fn covariance_of(
+    prob: &Problem,
+    xu: &[f64],
+    xy: &[f64],
+    r: &[f64],
+    slope: f64,
+    ne: &mut NormalEquations,
+    h: &mut [f64],
+    g: &mut [f64],
+) -> Option<Vec<f64>> {
     let d = prob.dim();
     let n = prob.n();
     if slope <= 0.0 {
         return None;
     }
     let kappa = r.iter().map(|v| v * v).sum::<f64>() / n as f64 / (slope * slope);
-    let (b, f, _) = prob.split(theta);
-    let (mut xu, mut yh, mut xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    oe::simulate_filtered(b, f, prob.delay, prob.u, &mut xu, &mut yh, &mut xy);
     let lay = prob.layout();
-    let (mut h, mut g) = (vec![0.0; d * d], vec![0.0; d]);
-    let mut ne = NormalEquations::default();
-    ne.build(&lay, &xu, &xy, None, r, &mut h, &mut g);
+    ne.build(&lay, xu, xy, None, r, h, g);
     if prob.offset {
-        ne.add_offset(&lay, &xu, &xy, None, r, &mut h, &mut g);
+        ne.add_offset(&lay, xu, xy, None, r, h, g);
     }
     // The inverse from a Cholesky factor of the diagonally scaled matrix (OE Gram matrices
     // span many decades).
@@ -171,16 +233,16 @@ pub fn gain_std(b: &[f64], f: &[f64], delay: usize, cov: &[f64], w: f64) -> (f64
     (mag, var.max(0.0).sqrt())
 }
 
-/// Ljung-Box p-value of the residuals `r` over lags 1..[`MAX_LAG`].
-fn whiteness_p(r: &[f64]) -> f64 {
-    let n = r.len();
+/// Ljung-Box p-value of the centred residuals `e` over lags 1..[`MAX_LAG`].
+fn whiteness_p(e: &[f64]) -> f64 {
+    let n = e.len();
     let m = MAX_LAG.min(n.saturating_sub(2));
     if m == 0 {
         return f64::NAN;
     }
-    let e = centred(r);
-    let mut acf = vec![0.0; m + 1];
-    kernels::lagged_dots(&e, &e, &mut acf);
+    let mut acf = [0.0; MAX_LAG + 1];
+    let acf = &mut acf[..m + 1];
+    kernels::lagged_dots(e, e, acf);
     if acf[0] <= 0.0 {
         return f64::NAN;
     }
@@ -189,16 +251,17 @@ fn whiteness_p(r: &[f64]) -> f64 {
     chi2_sf(q, m)
 }
 
-/// p-value of the independence of the residuals `r` from the input `u` at lags 0..[`MAX_LAG`].
-fn independence_p(r: &[f64], u: &[f64]) -> f64 {
-    let n = r.len();
-    let m = MAX_LAG.min(n.saturating_sub(2));
-    let (e, u) = (centred(r), centred(u));
-    let (mut see, mut ruu, mut reu) = (vec![0.0; 1], vec![0.0; m + 1], vec![0.0; m + 1]);
-    kernels::lagged_dots(&e, &e, &mut see);
-    kernels::lagged_dots(&u, &u, &mut ruu);
+/// p-value of the independence of the centred residuals `e` from the input at lags
+/// 0..[`MAX_LAG`]; `u` is the centred input and `ruu` its autocorrelation at lags 0..=m.
+fn independence_p(e: &[f64], u: &[f64], ruu: &[f64]) -> f64 {
+    let n = e.len();
+    let m = ruu.len() - 1;
+    let mut see = [0.0; 1];
+    let mut reu = [0.0; MAX_LAG + 1];
+    let reu = &mut reu[..m + 1];
+    kernels::lagged_dots(e, e, &mut see);
     // r_k = (1/N) sum_t e_t u_{t-k} = (1/N) sum_s u_s e_{s+k}.
-    kernels::lagged_dots(&u, &e, &mut reu);
+    kernels::lagged_dots(u, e, reu);
     let nf = n as f64;
     let sigma2 = see[0] / nf;
     if !(sigma2 > 0.0 && ruu[0] > 0.0) {
@@ -231,8 +294,16 @@ pub fn correlation_functions(r: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
 }
 
 fn centred(x: &[f64]) -> Vec<f64> {
+    let mut out = Vec::new();
+    centre_into(x, &mut out);
+    out
+}
+
+/// `out = x - mean(x)`.
+fn centre_into(x: &[f64], out: &mut Vec<f64>) {
     let mean = x.iter().sum::<f64>() / x.len() as f64;
-    x.iter().map(|v| v - mean).collect()
+    out.clear();
+    out.extend(x.iter().map(|v| v - mean));
 }
 
 /// `P(X > q)` for X chi-squared with `dof` degrees of freedom.
@@ -290,12 +361,19 @@ mod tests {
         };
         let e: Vec<f64> = (0..4000).map(|_| normal()).collect();
         let u: Vec<f64> = (0..4000).map(|_| normal()).collect();
-        assert!(whiteness_p(&e) > 0.001, "{}", whiteness_p(&e));
-        assert!(independence_p(&e, &u) > 0.001, "{}", independence_p(&e, &u));
+        let white = |x: &[f64]| whiteness_p(&centred(x));
+        let indep = |x: &[f64], u: &[f64]| {
+            let (x, u) = (centred(x), centred(u));
+            let mut ruu = vec![0.0; MAX_LAG + 1];
+            kernels::lagged_dots(&u, &u, &mut ruu);
+            independence_p(&x, &u, &ruu)
+        };
+        assert!(white(&e) > 0.001, "{}", white(&e));
+        assert!(indep(&e, &u) > 0.001, "{}", indep(&e, &u));
         let ma: Vec<f64> = e.windows(2).map(|w| w[1] + 0.5 * w[0]).collect();
-        assert!(whiteness_p(&ma) < 1e-6);
+        assert!(white(&ma) < 1e-6);
         // Residuals that carry the input at lag 3.
         let leak: Vec<f64> = (0..4000).map(|t| e[t] + if t >= 3 { 0.2 * u[t - 3] } else { 0.0 }).collect();
-        assert!(independence_p(&leak, &u) < 1e-6);
+        assert!(indep(&leak, &u) < 1e-6);
     }
 }

@@ -102,7 +102,10 @@ pub struct Assessment {
     pub evidence: evidence::Evidence,
 }
 
-fn assess(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64], judge: &Judge) -> Assessment {
+/// The assessment of the solution `theta` whose output and Jacobian signals the workspace
+/// holds (the solver's last, or [`Workspace::resimulate`]).
+fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: &Judge) -> Assessment {
+    let yhat = &ws.yhat[..];
     let (b, f, _) = prob.split(theta);
     let fit_val = judge.validation.map(|(u, y)| {
         let val = Problem { u, y, ..*prob };
@@ -115,7 +118,7 @@ fn assess(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64], judge: &Judge
         fit_val: fit_val.filter(|v| v.is_finite()),
         fit_band: fit_band.filter(|v| v.is_finite()),
         max_pole_radius: oe::max_pole_radius(f),
-        evidence: evidence::evidence(prob, theta, loss, yhat),
+        evidence: evidence::evidence(prob, theta, loss, &ws.yhat, &ws.xu, &ws.xy, &mut ws.evidence),
     }
 }
 
@@ -305,16 +308,15 @@ pub(crate) fn huber_from_solution(
 ) -> HuberFit {
     let gamma = k * sigma;
     if resimulate {
-        prob.simulate(&sol.theta, &mut ws.yhat);
+        ws.resimulate(prob, &sol.theta);
     }
     let (b, f, _) = prob.split(&sol.theta);
-    let yhat = ws.yhat();
     HuberFit {
         k,
         gamma,
         criterion: sol.criterion,
-        l1c: huber::l1_contribution(prob.y, yhat, gamma),
-        assessment: assess(prob, &sol.theta, Loss::Huber { gamma }, yhat, judge),
+        l1c: huber::l1_contribution(prob.y, ws.yhat(), gamma),
+        assessment: assess(prob, &sol.theta, Loss::Huber { gamma }, ws, judge),
         iterations: sol.iterations,
         termination: sol.termination,
         reflections: sol.reflections,
@@ -331,7 +333,7 @@ fn better(a: &Solution, b: &Solution) -> bool {
 
 fn ls_from_solution(prob: &Problem, sol: Solution, judge: &Judge, _opts: &SolverOptions, ws: &mut Workspace) -> LsFit {
     // The workspace holds the simulation of the last minimisation, not necessarily this one.
-    prob.simulate(&sol.theta, &mut ws.yhat);
+    ws.resimulate(prob, &sol.theta);
     ls_fit(prob, sol, judge, ws)
 }
 
@@ -341,7 +343,7 @@ pub fn fit_ls_from(prob: &Problem, theta0: &[f64], judge: &Judge, opts: &SolverO
     ls_fit(prob, sol, judge, ws)
 }
 
-fn ls_fit(prob: &Problem, sol: Solution, judge: &Judge, ws: &Workspace) -> LsFit {
+fn ls_fit(prob: &Problem, sol: Solution, judge: &Judge, ws: &mut Workspace) -> LsFit {
     let yhat = ws.yhat();
     let n = prob.n() as f64;
     let mean_e = prob.y.iter().zip(yhat).map(|(a, b)| a - b).sum::<f64>() / n;
@@ -353,7 +355,7 @@ fn ls_fit(prob: &Problem, sol: Solution, judge: &Judge, ws: &Workspace) -> LsFit
         delay: prob.delay,
         criterion: sol.criterion,
         sigma: var.sqrt(),
-        assessment: assess(prob, &sol.theta, Loss::LeastSquares, yhat, judge),
+        assessment: assess(prob, &sol.theta, Loss::LeastSquares, ws, judge),
         iterations: sol.iterations,
         termination: sol.termination,
         reflections: sol.reflections,

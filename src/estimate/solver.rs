@@ -255,9 +255,9 @@ impl Solution {
 pub struct Workspace {
     pub(crate) yhat: Vec<f64>,
     trial_yhat: Vec<f64>,
-    xu: Vec<f64>,
+    pub(crate) xu: Vec<f64>,
     trial_xu: Vec<f64>,
-    xy: Vec<f64>,
+    pub(crate) xy: Vec<f64>,
     trial_xy: Vec<f64>,
     r: Vec<f64>,
     w: Vec<f64>,
@@ -269,6 +269,7 @@ pub struct Workspace {
     trial: Vec<f64>,
     ne: NormalEquations,
     inner: super::separable::Inner,
+    pub(crate) evidence: super::evidence::Scratch,
     /// Criterion after each accepted step (first entry: the start), when `record_trace`.
     pub trace: Vec<f64>,
     pub record_trace: bool,
@@ -304,6 +305,19 @@ impl Workspace {
     /// The simulated output at the last solution returned by [`minimise`].
     pub fn yhat(&self) -> &[f64] {
         &self.yhat
+    }
+
+    /// Makes `theta` the workspace's solution: its output ([`Problem::simulate`]) and the
+    /// Jacobian signals `xu`, `xy` (for another solution than the last minimisation's).
+    pub(crate) fn resimulate(&mut self, prob: &Problem, theta: &[f64]) {
+        let n = prob.n();
+        for v in [&mut self.yhat, &mut self.xu, &mut self.xy] {
+            v.resize(n, 0.0);
+        }
+        prob.simulate(theta, &mut self.yhat);
+        self.xu.copy_from_slice(prob.u);
+        oe::inv_f_in_place(prob.split(theta).1, &mut self.xu);
+        output_filtered(prob, theta, &self.yhat, &mut self.xy);
     }
 }
 
