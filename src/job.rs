@@ -161,6 +161,9 @@ impl Default for SelectionSettings {
     }
 }
 
+/// Smallest `solver.explore_rows`: a shorter head says too little about lightly damped modes.
+const MIN_EXPLORE_ROWS: usize = 1000;
+
 /// The job's `solver` settings: the file's schema of [`SolverOptions`] (same fields, same
 /// defaults, unknown fields rejected). Validated in [`load`]; the numerics get the plain
 /// options from [`SolverSettings::options`].
@@ -177,6 +180,7 @@ pub struct SolverSettings {
     pub huber_tol: f64,
     pub huber_extra_starts: usize,
     pub method: Method,
+    pub explore_rows: usize,
 }
 
 impl Default for SolverSettings {
@@ -193,6 +197,7 @@ impl Default for SolverSettings {
             huber_tol: o.huber_tol,
             huber_extra_starts: o.huber_extra_starts,
             method: o.method,
+            explore_rows: o.explore_rows,
         }
     }
 }
@@ -211,6 +216,7 @@ impl SolverSettings {
             huber_tol: self.huber_tol,
             huber_extra_starts: self.huber_extra_starts,
             method: self.method,
+            explore_rows: self.explore_rows,
         }
     }
 }
@@ -497,6 +503,12 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     let s = &job.solver;
     if s.max_iterations == 0 {
         return Err(bad("solver.max_iterations", "must be at least 1".into()));
+    }
+    if s.explore_rows != 0 && s.explore_rows < MIN_EXPLORE_ROWS {
+        return Err(bad(
+            "solver.explore_rows",
+            format!("must be 0 (explore on the whole record) or at least {MIN_EXPLORE_ROWS}, got {}", s.explore_rows),
+        ));
     }
     for (name, v) in [
         ("ftol", s.ftol),

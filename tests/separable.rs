@@ -176,3 +176,29 @@ fn a_job_selects_the_separable_solver() {
     // The L1C pick is the true structure.
     assert_eq!((&sel["m2"]["nb"], &sel["m2"]["nf"]), (&serde_json::json!(2), &serde_json::json!(2)));
 }
+
+/// A record longer than `solver.explore_rows` explores its least-squares starts on its head and
+/// minimises the best few on the whole record: on a long record with spikes it reaches the
+/// minima of the whole-record exploration (least squares and the Huber cells from its starts).
+#[test]
+fn exploring_the_starts_on_the_head_reaches_the_whole_record_minima() {
+    let (u, y) = spiky(40_000, 1.0);
+    let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true };
+    let judge = Judge::default();
+    let mut ws = Workspace::new();
+    let whole = SolverOptions { explore_rows: 0, ..SolverOptions::default() };
+    let head = SolverOptions { explore_rows: 4096, ..SolverOptions::default() };
+    let a = estimate::fit_ls(&prob, &judge, &whole, &mut ws);
+    let b = estimate::fit_ls(&prob, &judge, &head, &mut ws);
+    assert!((a.criterion - b.criterion).abs() <= 1e-8 * a.criterion, "{} vs {}", a.criterion, b.criterion);
+    for k in [0.05, 0.5, 2.0] {
+        let (ha, _) = estimate::fit_huber_multi(&prob, &a, k, &judge, &whole, &mut ws);
+        let (hb, _) = estimate::fit_huber_multi(&prob, &b, k, &judge, &head, &mut ws);
+        assert!(
+            (ha.criterion - hb.criterion).abs() <= 1e-7 * ha.criterion,
+            "k={k}: {} vs {}",
+            ha.criterion,
+            hb.criterion
+        );
+    }
+}

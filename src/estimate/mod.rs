@@ -192,54 +192,31 @@ impl HuberFit {
 
 /// Steps 1-2: least-squares prediction-error fit from each initial guess (ARX, IV); the
 /// lowest criterion wins (ties: the first).
+///
+/// On a record longer than `opts.explore_rows` the starts are explored on its first
+/// `explore_rows` samples (every start and detour of [`ls_minima`]), and only the best of those
+/// minima and the runners-up that become Huber starts are then minimised on the whole record,
+/// from where they ended: the exploration is most of the least-squares phase, and its cost then
+/// stops growing with N (METHOD.md 5.2, step 5).
 pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Workspace) -> LsFit {
-    let guesses = init::initial_guesses(prob);
-    // Each guess twice: with the usual damping and with heavy initial damping (gradient-like
-    // first steps, as a trust-region solver takes), which often ends in another, lower minimum.
-    let damped = SolverOptions { lambda0: DAMPED_LAMBDA0, ..opts.clone() };
-    let mut sols: Vec<Solution> = guesses
-        .iter()
-        .flat_map(|g| [opts, &damped].map(|o| solver::minimise(prob, Loss::LeastSquares, g, o, ws)))
-        .collect();
-    let best_of = |sols: &[Solution]| {
-        let mut best = 0;
-        for (i, sol) in sols.iter().enumerate() {
-            if better(sol, &sols[best]) {
-                best = i;
-            }
+    let sols = match opts.explore_rows {
+        p if p > 0 && prob.n() > p => {
+            let head = Problem { u: &prob.u[..p], y: &prob.y[..p], ..*prob };
+            let found = ls_minima(&head, opts, ws);
+            let (best, others) = ranked(&found);
+            std::iter::once(best)
+                .chain(others.into_iter().take(opts.huber_extra_starts))
+                .map(|s| solver::minimise(prob, Loss::LeastSquares, &s.theta, opts, ws))
+                .collect()
         }
-        best
+        _ => ls_minima(prob, opts, ws),
     };
-    // One more start from a robust detour: spikes pull the least-squares fit into poor local
-    // minima, and a Huber fit (gamma = sigma/2) followed by least squares from its solution
-    // often lands in a lower least-squares minimum (measured on piezo-like data).
-    let first = best_of(&sols);
-    if sols[first].criterion.is_finite() && sols[first].criterion > 0.0 {
-        let sigma = (2.0 * sols[first].criterion).sqrt();
-        for k in ROBUST_START_K {
-            let robust = solver::minimise(prob, Loss::Huber { gamma: k * sigma }, &sols[first].theta, opts, ws);
-            if robust.criterion.is_finite() {
-                sols.push(solver::minimise(prob, Loss::LeastSquares, &robust.theta, opts, ws));
-            }
-        }
-    }
-    let best = best_of(&sols);
-    // The runner-up least-squares minima are further Huber starts (solver.huber_extra_starts).
-    let mut others: Vec<&Solution> = sols
-        .iter()
-        .enumerate()
-        .filter(|&(i, sol)| {
-            let distinct = (sol.criterion - sols[best].criterion).abs() > 1e-9 * sols[best].criterion.abs();
-            i != best && sol.usable() && distinct
-        })
-        .map(|(_, sol)| sol)
-        .collect();
-    others.sort_by(|a, b| a.criterion.total_cmp(&b.criterion));
+    let (best, others) = ranked(&sols);
     let mut alternatives: Vec<Vec<f64>> =
         others.iter().take(opts.huber_extra_starts).map(|s| s.theta.clone()).collect();
     // On the stability boundary the Huber fit cannot move the near-unit pole (1/F has an
     // almost infinite memory there), while a start just inside often reaches a much lower W.
-    let theta = &sols[best].theta;
+    let theta = &best.theta;
     let radius = crate::oe::max_pole_radius(prob.split(theta).1);
     if opts.huber_extra_starts > 0 && radius > BOUNDARY && radius.is_finite() {
         let mut c = theta.clone();
@@ -249,10 +226,60 @@ pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Work
         }
         alternatives.push(c);
     }
-    let best_sol = sols.into_iter().nth(best).expect("at least one start");
-    let mut fit = ls_from_solution(prob, best_sol, judge, opts, ws);
+    let mut fit = ls_from_solution(prob, best.clone(), judge, opts, ws);
     fit.alternatives = alternatives;
     fit
+}
+
+/// The lowest usable solution (ties: the first) and the others that are usable and distinct
+/// from it (relative 1e-9 in the criterion), in increasing criterion: the runner-up
+/// least-squares minima, further Huber starts (`solver.huber_extra_starts`).
+fn ranked(sols: &[Solution]) -> (&Solution, Vec<&Solution>) {
+    let mut best = 0;
+    for (i, sol) in sols.iter().enumerate() {
+        if better(sol, &sols[best]) {
+            best = i;
+        }
+    }
+    let top = &sols[best];
+    let mut others: Vec<&Solution> = sols
+        .iter()
+        .enumerate()
+        .filter(|&(i, sol)| {
+            let distinct = (sol.criterion - top.criterion).abs() > 1e-9 * top.criterion.abs();
+            i != best && sol.usable() && distinct
+        })
+        .map(|(_, sol)| sol)
+        .collect();
+    others.sort_by(|a, b| a.criterion.total_cmp(&b.criterion));
+    (top, others)
+}
+
+/// Every least-squares minimisation of the phase: from each initial guess (ARX, IV) twice, and
+/// from the robust detours.
+fn ls_minima(prob: &Problem, opts: &SolverOptions, ws: &mut Workspace) -> Vec<Solution> {
+    let guesses = init::initial_guesses(prob);
+    // Each guess twice: with the usual damping and with heavy initial damping (gradient-like
+    // first steps, as a trust-region solver takes), which often ends in another, lower minimum.
+    let damped = SolverOptions { lambda0: DAMPED_LAMBDA0, ..opts.clone() };
+    let mut sols: Vec<Solution> = guesses
+        .iter()
+        .flat_map(|g| [opts, &damped].map(|o| solver::minimise(prob, Loss::LeastSquares, g, o, ws)))
+        .collect();
+    // One more start from a robust detour: spikes pull the least-squares fit into poor local
+    // minima, and a Huber fit (gamma = sigma/2) followed by least squares from its solution
+    // often lands in a lower least-squares minimum (measured on piezo-like data).
+    let first = ranked(&sols).0.clone();
+    if first.criterion.is_finite() && first.criterion > 0.0 {
+        let sigma = (2.0 * first.criterion).sqrt();
+        for k in ROBUST_START_K {
+            let robust = solver::minimise(prob, Loss::Huber { gamma: k * sigma }, &first.theta, opts, ws);
+            if robust.criterion.is_finite() {
+                sols.push(solver::minimise(prob, Loss::LeastSquares, &robust.theta, opts, ws));
+            }
+        }
+    }
+    sols
 }
 
 /// Initial damping of the second least-squares run from each initial guess.

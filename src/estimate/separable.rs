@@ -1,4 +1,4 @@
-//! Variable projection (METHOD.md 5.6): the inner problem of the separable solver.
+//! Variable projection (METHOD.md 12): the inner problem of the separable solver.
 //!
 //! For a fixed F the OE predictor is linear in beta = [b, c]:
 //!

@@ -44,7 +44,7 @@ pub enum Method {
     #[default]
     Lm,
     /// Variable projection: Levenberg-Marquardt over F, with [b, c] solved for each F
-    /// ([`super::separable`], METHOD.md 5.6).
+    /// ([`super::separable`], METHOD.md 12).
     Separable,
 }
 
@@ -89,6 +89,10 @@ pub struct SolverOptions {
     pub huber_extra_starts: usize,
     /// Full Levenberg-Marquardt or variable projection.
     pub method: Method,
+    /// Records longer than this explore the least-squares starts on their first
+    /// `explore_rows` samples and minimise only the best few on the whole record
+    /// ([`super::fit_ls`]); 0 = explore on the whole record.
+    pub explore_rows: usize,
 }
 
 impl Default for SolverOptions {
@@ -104,6 +108,7 @@ impl Default for SolverOptions {
             huber_tol: 1e-8,
             huber_extra_starts: 2,
             method: Method::Lm,
+            explore_rows: 16384,
         }
     }
 }
