@@ -15,8 +15,9 @@
 //! - `ls`: every peer cell on its own from theta_LS and each extra start.
 //!
 //! Prints the share of cells where oesweep is no worse, the worst cases, and the work done.
-//! Environment: OESWEEP_EXTRA_STARTS, OESWEEP_HUBER_TOL and OESWEEP_METHOD override
-//! `solver.huber_extra_starts`, `solver.huber_tol` and `solver.method`.
+//! Environment: OESWEEP_EXTRA_STARTS, OESWEEP_HUBER_TOL, OESWEEP_METHOD and
+//! OESWEEP_EXPLORE_ROWS override `solver.huber_extra_starts`, `solver.huber_tol`,
+//! `solver.method` and `solver.explore_rows`.
 
 use oesweep::estimate::{self, Judge, Problem, SolverOptions, Workspace};
 use rayon::prelude::*;
@@ -66,6 +67,9 @@ fn main() {
     }
     if let Ok(v) = std::env::var("OESWEEP_METHOD") {
         opts.method = serde_json::from_value(serde_json::Value::String(v)).expect("lm or separable");
+    }
+    if let Ok(v) = std::env::var("OESWEEP_EXPLORE_ROWS") {
+        opts.explore_rows = v.parse().expect("a count");
     }
     let tol = 1e-4;
     let judge = Judge::default();

@@ -16,6 +16,8 @@
 //! its k values, then the distribution of
 //! peer/ours time ratios over all cells and the iterations of both sides (ours: outer
 //! Levenberg-Marquardt iterations; peer: Jacobian evaluations of scipy's trf).
+//! Environment: OESWEEP_METHOD and OESWEEP_EXPLORE_ROWS override `solver.method` and
+//! `solver.explore_rows`.
 
 use oesweep::estimate::{self, Judge, Loss, Problem, SolverOptions, Workspace, solver};
 use std::time::Instant;
@@ -70,6 +72,9 @@ fn main() {
     let mut opts = SolverOptions::default();
     if let Ok(v) = std::env::var("OESWEEP_METHOD") {
         opts.method = serde_json::from_value(serde_json::Value::String(v)).expect("lm or separable");
+    }
+    if let Ok(v) = std::env::var("OESWEEP_EXPLORE_ROWS") {
+        opts.explore_rows = v.parse().expect("a count");
     }
     let hopts = opts.huber();
     let mut ws = Workspace::new();
