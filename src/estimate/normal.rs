@@ -95,6 +95,10 @@ pub struct NormalEquations {
     scaled: Vec<f64>,
     /// Column sums `sum_t w_t psi_t` of the offset's row ([`NormalEquations::add_offset`]).
     sums: Vec<f64>,
+    /// `sum_k alpha_k psi_{t_k}` and `sum_k alpha_k` over the rows of the last weighted sum
+    /// ([`NormalEquations::add_rows`]), d entries padded to a multiple of 4.
+    row_sums: Vec<f64>,
+    row_weight: f64,
     /// The last `build` summed the weighted rows directly (`rows`, `alpha` = the rows with
     /// w_t > 0 and their weights) rather than as a correction (`alpha = w_t - 1`).
     direct: bool,
@@ -202,10 +206,11 @@ impl NormalEquations {
     /// stride) by an output offset c, whose Jacobian column is all ones (METHOD.md 9.1): `h`
     /// becomes (d0 + 1) x (d0 + 1) with the new row `(1/N) sum_t w_t [psi_t, 1]`, and
     /// `g_c = (1/N) sum_t r_t`. The column sums of the unweighted Jacobian are sums of `xu` and
-    /// `xy` less a few end terms; the rows with `w_t != 1` are then corrected one by one, with
-    /// the row list `build` made for the Gram matrix (or, when `build` summed the weighted rows
-    /// directly, the sums are taken over those rows). O(N + m d) for m reweighted rows; must
-    /// follow `build` with the same arguments; no allocation after the first call.
+    /// `xy` less a few end terms; the rows with `w_t != 1` are then corrected by their weighted
+    /// sums, which `build` took while it summed those rows for the Gram matrix (or, when
+    /// `build` summed the weighted rows directly, the sums are those rows'). O(N) here plus
+    /// O(m d) in `build` for m reweighted rows; must follow `build` with the same arguments; no
+    /// allocation after the first call.
     #[allow(clippy::too_many_arguments)]
     pub fn add_offset(
         &mut self,
@@ -247,14 +252,11 @@ impl NormalEquations {
             weight = n as f64;
         }
         if w.is_some() {
-            self.psi.resize(d0, 0.0);
-            for (&t, &a) in self.rows.iter().zip(&self.alpha) {
-                lay.row(xu, xy, t as usize, &mut self.psi);
-                for (s, p) in self.sums.iter_mut().zip(&self.psi) {
-                    *s += a * p;
-                }
-                weight += a;
+            // The weighted rows' sums, which `build` took along with their product.
+            for (s, p) in self.sums.iter_mut().zip(&self.row_sums) {
+                *s += p;
             }
+            weight += self.row_weight;
         }
         for (c, s) in self.sums.iter().enumerate() {
             h[d0 * d + c] = s * inv_n;
@@ -272,10 +274,18 @@ impl NormalEquations {
     fn add_rows(&mut self, lay: &Layout, xu: &[f64], xy: &[f64], h: &mut [f64]) {
         let d = lay.dim();
         let m = self.rows.len();
+        // The same rows' weighted sums, for an offset's row (`add_offset`), while they are at
+        // hand: d multiply-adds per row beside the d^2/2 of the product.
+        self.row_sums.clear();
+        self.row_sums.resize(d.div_ceil(4) * 4, 0.0);
+        self.row_weight = self.alpha.iter().sum();
         if m < PACK_MIN_ROWS {
             for (&t, &a) in self.rows.iter().zip(&self.alpha) {
                 lay.row(xu, xy, t as usize, &mut self.psi);
                 rank1_upper(h, d, &self.psi, a);
+                for (s, &p) in self.row_sums.iter_mut().zip(&self.psi) {
+                    *s += a * p;
+                }
             }
             return;
         }
@@ -315,6 +325,11 @@ impl NormalEquations {
                     for (q, &p) in dst.iter_mut().zip(src) {
                         *q = a * p;
                     }
+                }
+            }
+            for (row, &a) in self.packed.chunks_exact(dp).zip(alpha) {
+                for (s, &p) in self.row_sums.iter_mut().zip(row) {
+                    *s += a * p;
                 }
             }
             let q = if uniform { &self.packed[..mb * dp] } else { &self.scaled[..mb * dp] };
