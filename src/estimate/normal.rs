@@ -56,20 +56,23 @@ impl Layout {
     }
 }
 
-/// `rows` <- the t with `w[t] != skip`, and `alpha` (if given) <- those `w[t]`.
-fn compact_rows(rows: &mut Vec<u32>, alpha: Option<&mut Vec<f64>>, w: &[f64], skip: f64) {
+/// `rows[..m]` <- the t with `w[t] != skip`, and `alpha[..m]` (if given) <- those `w[t]`;
+/// returns m. Both keep their length (`w.len() + 3`, the kernel's scratch) from call to call:
+/// truncating and re-growing them refilled N entries with zeros on every build.
+fn compact_rows(rows: &mut Vec<u32>, alpha: Option<&mut Vec<f64>>, w: &[f64], skip: f64) -> usize {
     let n = w.len();
-    rows.resize(n + 3, 0);
-    let m = match alpha {
+    if rows.len() < n + 3 {
+        rows.resize(n + 3, 0);
+    }
+    match alpha {
         None => crate::kernels::compact(w, skip, rows, None),
         Some(alpha) => {
-            alpha.resize(n + 3, 0.0);
-            let m = crate::kernels::compact(w, skip, rows, Some(alpha));
-            alpha.truncate(m);
-            m
+            if alpha.len() < n + 3 {
+                alpha.resize(n + 3, 0.0);
+            }
+            crate::kernels::compact(w, skip, rows, Some(alpha))
         }
-    };
-    rows.truncate(m);
+    }
 }
 
 /// Below this many weighted rows the rank-1 updates beat packing them for a matrix product.
@@ -85,8 +88,9 @@ use crate::kernels::{lagged_dots, rank1_upper};
 pub struct NormalEquations {
     /// Per lag L: `R_uu, R_yy, R_uy, R_yu, R_ur, R_yr` with `R_ab(L) = sum_s a[s] b[s+L]`.
     corr: Vec<[f64; 6]>,
-    /// Rows whose weight differs from 1.
+    /// Rows whose weight differs from 1 (or, `direct`, rows with a weight): `rows[..m]`.
     rows: Vec<u32>,
+    m: usize,
     psi: Vec<f64>,
     /// Packed Jacobian rows of a weighted sum (row-major, m x d padded to a multiple of 4),
     /// their weights, and the weighted copy when the weights differ.
@@ -139,12 +143,12 @@ impl NormalEquations {
         self.psi.resize(d, 0.0);
         let inv_n = 1.0 / n as f64;
 
-        self.rows.clear();
-        if let Some(w) = w {
-            compact_rows(&mut self.rows, None, w, 1.0);
-        }
+        self.m = match w {
+            Some(w) => compact_rows(&mut self.rows, None, w, 1.0),
+            None => 0,
+        };
         // Most rows reweighted: the sum is taken over them directly and needs no Gram matrix.
-        let direct = w.is_some() && 2 * self.rows.len() > n;
+        let direct = w.is_some() && 2 * self.m > n;
         self.direct = direct;
 
         // g_c = sign_c sum_s s_c[s] r[s + lag_c]: consecutive lags of (xu, r) from d and of
@@ -181,14 +185,14 @@ impl NormalEquations {
         match w {
             Some(w) if direct => {
                 h.fill(0.0);
-                compact_rows(&mut self.rows, Some(&mut self.alpha), w, 0.0);
+                self.m = compact_rows(&mut self.rows, Some(&mut self.alpha), w, 0.0);
                 self.add_rows(lay, xu, xy, h);
             }
             _ => {
                 self.gram(lay, xu, xy, h);
                 if let Some(w) = w {
                     self.alpha.clear();
-                    self.alpha.extend(self.rows.iter().map(|&t| w[t as usize] - 1.0));
+                    self.alpha.extend(self.rows[..self.m].iter().map(|&t| w[t as usize] - 1.0));
                     self.add_rows(lay, xu, xy, h);
                 }
             }
@@ -273,14 +277,15 @@ impl NormalEquations {
     /// which does the same multiply-adds without a load and a store of `h` for each of them.
     fn add_rows(&mut self, lay: &Layout, xu: &[f64], xy: &[f64], h: &mut [f64]) {
         let d = lay.dim();
-        let m = self.rows.len();
+        let m = self.m;
+        let (rows, alpha) = (&self.rows[..m], &self.alpha[..m]);
         // The same rows' weighted sums, for an offset's row (`add_offset`), while they are at
         // hand: d multiply-adds per row beside the d^2/2 of the product.
         self.row_sums.clear();
         self.row_sums.resize(d.div_ceil(4) * 4, 0.0);
-        self.row_weight = self.alpha.iter().sum();
+        self.row_weight = alpha.iter().sum();
         if m < PACK_MIN_ROWS {
-            for (&t, &a) in self.rows.iter().zip(&self.alpha) {
+            for (&t, &a) in rows.iter().zip(alpha) {
                 lay.row(xu, xy, t as usize, &mut self.psi);
                 rank1_upper(h, d, &self.psi, a);
                 for (s, &p) in self.row_sums.iter_mut().zip(&self.psi) {
@@ -297,13 +302,13 @@ impl NormalEquations {
         let (nb, dl) = (lay.nb, lay.delay);
         let first_full = (dl + nb).max(lay.nf + 1).max(dl + 1) - 1;
         // One weight for all rows (the Gauss-Newton Huber Hessian: -1 or 1) needs no copy.
-        let uniform = self.alpha.iter().all(|&a| a == self.alpha[0]);
-        let scale = if uniform { self.alpha[0] } else { 1.0 };
+        let uniform = alpha.iter().all(|&a| a == alpha[0]);
+        let scale = if uniform { alpha[0] } else { 1.0 };
         self.packed.resize(PACK_BLOCK.min(m) * dp, 0.0);
         if !uniform {
             self.scaled.resize(PACK_BLOCK.min(m) * dp, 0.0);
         }
-        for (rows, alpha) in self.rows.chunks(PACK_BLOCK).zip(self.alpha.chunks(PACK_BLOCK)) {
+        for (rows, alpha) in rows.chunks(PACK_BLOCK).zip(alpha.chunks(PACK_BLOCK)) {
             let mb = rows.len();
             for (row, &t) in self.packed.chunks_exact_mut(dp).zip(rows) {
                 let t = t as usize;
