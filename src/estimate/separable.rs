@@ -28,14 +28,16 @@
 //! for few reweighted rows, the direct sum for many) have one home.
 //!
 //! Buffers: the caller's xu, yhat and two N-length scratch vectors (r, w: free during a
-//! trial, see [`super::solver::minimise`]); the rest is (nB + 1)^2-sized.
+//! trial, see [`super::solver::minimise`]), the inner normal equations' row list and weights
+//! (1.5 N-length); the rest is (nB + 1)^2-sized.
 
 use super::huber::Loss;
 use super::normal::{Layout, NormalEquations};
 use super::solver::{Problem, cholesky, cholesky_solve};
 use crate::oe;
 
-/// Newton steps of a Huber inner problem at most (warm-started, 1-3 are typical).
+/// Newton steps of a Huber inner problem at most (each warm-started from the linearised beta
+/// of the outer step).
 pub const INNER_MAX: usize = 6;
 /// A Huber inner step lowering W by less than this (relative) ends the inner solve.
 pub const INNER_FTOL: f64 = 1e-12;
