@@ -9,8 +9,8 @@
 #   4. quality against the peer's 8-k grid (examples/compare_peer_grid.rs): the share of Huber
 #      cells and least-squares fits no worse than the peer's (relative 1e-4), on the bundled
 #      record and, with HELDOUT=DIR (DIR/est.csv, DIR/val.csv), on another one. The peer's grid
-#      takes ~3 min per record; an existing DIR/peer_grid.jsonl (or /tmp/peer_grid.jsonl for the
-#      bundled record) is reused.
+#      takes ~3 min per record; an existing DIR/peer_grid.jsonl is reused, and for the bundled
+#      record PEER_GRID=FILE names one made earlier (by the README's peer command) to reuse.
 #
 #   bash benches/frontier.sh                       # RUNS=3
 #   METHOD=separable bash benches/frontier.sh      # the variable-projection solver
@@ -78,7 +78,7 @@ quality() {
     "$ex/compare_peer_grid" "$est" "$grid" 2>&1 | tail -3
 }
 echo "== 4. quality against the peer (bundled record)"
-quality "$root/jobs/data/piezo_est.csv" "$root/jobs/data/piezo_val.csv" /tmp/peer_grid.jsonl
+quality "$root/jobs/data/piezo_est.csv" "$root/jobs/data/piezo_val.csv" "${PEER_GRID:-$work/peer_grid.jsonl}"
 if [[ -n ${HELDOUT:-} ]]; then
     echo "== 4b. quality against the peer (held-out record $HELDOUT)"
     quality "$HELDOUT/est.csv" "$HELDOUT/val.csv" "$HELDOUT/peer_grid.jsonl"
