@@ -48,15 +48,6 @@ pub enum Method {
     Separable,
 }
 
-impl Method {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Method::Lm => "lm",
-            Method::Separable => "separable",
-        }
-    }
-}
-
 /// Solver settings (the job file's schema of them is [`crate::job::SolverSettings`]). Defaults
 /// are tight enough to match a scipy trust-region fit to ~1e-8.
 #[derive(Clone, Debug, PartialEq)]
@@ -404,8 +395,8 @@ fn add_offset(yhat: &mut [f64], c: f64) {
     }
 }
 
-/// `xy = (1/F) (yhat - c)`: the F columns' signal of the Jacobian, from a separable
-/// evaluation's output.
+/// `xy = (1/F) (yhat - c)`: the F columns' signal of the Jacobian from a given output (a
+/// separable evaluation's, or a re-simulated one), when no fused pass computed it.
 fn output_filtered(prob: &Problem, theta: &[f64], yhat: &[f64], xy: &mut [f64]) {
     let (_, f, c) = prob.split(theta);
     for (x, &v) in xy.iter_mut().zip(yhat) {
