@@ -119,7 +119,7 @@ fn main() {
                 }
                 // The sweep's backward pass over the pair (see `ChainWalk`).
                 let grid: Vec<f64> = ks.iter().map(|&(k, _)| k).collect();
-                walk.walk_back(&pair, &grid, ws);
+                walk.walk_back(&pair, &grid, &ls.theta(), ws);
                 for (cell, &(_, peer)) in walk.cells.iter().zip(&ks) {
                     if let (Some((h, _)), Some(i)) = (cell, peer) {
                         ours[i] = h.criterion;

@@ -48,6 +48,17 @@ pub enum Method {
     Separable,
 }
 
+impl Method {
+    /// The other method: the least-squares phase minimises one start with each
+    /// ([`super::fit_ls`]).
+    pub fn other(self) -> Method {
+        match self {
+            Method::Lm => Method::Separable,
+            Method::Separable => Method::Lm,
+        }
+    }
+}
+
 /// Solver settings (the job file's schema of them is [`crate::job::SolverSettings`]). Defaults
 /// are tight enough to match a scipy trust-region fit to ~1e-8.
 #[derive(Clone, Debug, PartialEq)]
