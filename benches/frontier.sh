@@ -8,7 +8,8 @@
 #   3. the 131 072-sample sweep of benches/long_record.sh: wall time and max RSS;
 #   4. quality against the peer's 8-k grid (examples/compare_peer_grid.rs): the share of Huber
 #      cells and least-squares fits no worse than the peer's (relative 1e-4), on the bundled
-#      record and, with HELDOUT=DIR (DIR/est.csv, DIR/val.csv), on another one. The peer's grid
+#      record and, with HELDOUT=DIR (DIR/est.csv, DIR/val.csv; simulated with seeds 21/22 when
+#      missing), on another one. The peer's grid
 #      takes ~3 min per record; an existing DIR/peer_grid.jsonl is reused, and for the bundled
 #      record PEER_GRID=FILE names one made earlier (by the README's peer command) to reuse.
 #
@@ -81,5 +82,13 @@ echo "== 4. quality against the peer (bundled record)"
 quality "$root/jobs/data/piezo_est.csv" "$root/jobs/data/piezo_val.csv" "${PEER_GRID:-$work/peer_grid.jsonl}"
 if [[ -n ${HELDOUT:-} ]]; then
     echo "== 4b. quality against the peer (held-out record $HELDOUT)"
+    # Missing: simulated from the same system with other seeds and stronger noise and spikes.
+    for part in est:21 val:22; do
+        if [[ ! -s $HELDOUT/${part%%:*}.csv ]]; then
+            mkdir -p "$HELDOUT"
+            "$bin" simulate --system "$root/jobs/data/piezo_system.json" --out "$HELDOUT/${part%%:*}.csv" \
+                --seed "${part##*:}" --noise-std 0.1 --outlier-prob 0.05 --outlier-range 20,60 >/dev/null
+        fi
+    done
     quality "$HELDOUT/est.csv" "$HELDOUT/val.csv" "$HELDOUT/peer_grid.jsonl"
 fi
