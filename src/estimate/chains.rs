@@ -137,9 +137,9 @@ impl Chains {
 /// The pass also fits the top cell (largest k) from theta_LS, as an independent solver that
 /// starts every cell there would: that is where the Huber minimum lies nearest theta_LS, while
 /// the chains arrive from below, possibly in another basin. A lower fit is walked down like a
-/// jump. Against the scipy peer's 8-k grid this took the Huber cells no worse from 744 to 755
-/// of 768 on the bundled record and from 753 to 762 on a held-out one, for one cold fit per
-/// pair.
+/// jump. Against the scipy peer's 8-k grid this took the Huber cells no worse from 744 to 761
+/// of 768 on the bundled record and from 753 to 763 on a held-out one (with the least-squares
+/// phase's extra minimum), for one fit per pair.
 #[derive(Clone, Debug, Default)]
 pub struct ChainWalk {
     /// Per k: the cell's fit and where it came from (the winning chain, or the backward
@@ -176,11 +176,15 @@ impl ChainWalk {
         // Last, so that it only adds to what the passes above found: the top cell from theta_LS,
         // as an independent solver starts every cell. At the largest k the Huber minimum lies
         // nearest theta_LS, and the chains, arriving from below, may sit in another basin.
+        // With the warm settings: theta_LS is next to that minimum (at k = 2 nearly every
+        // residual is in the L2 region), and near Gauss-Newton first steps stay in its basin
+        // where the cold damping's gradient-like ones wander (against the scipy peer, bundled
+        // record: 761 against 757 of 768 Huber cells no worse; held-out: 763 either way).
         if let Some(Some((top, _))) = self.cells.last() {
             let incumbent = top.criterion;
             let t = std::time::Instant::now();
             let loss = Loss::Huber { gamma: ks[n - 1] * sigma };
-            let sol = solver::minimise(prob, loss, theta_ls, &opts.huber(), ws);
+            let sol = solver::minimise(prob, loss, theta_ls, &opts.huber_warm(), ws);
             let lower = sol.usable() && (!incumbent.is_finite() || sol.criterion < incumbent * (1.0 - Chains::MERGE));
             if lower {
                 let fit = huber_from_solution(prob, sigma, ks[n - 1], &sol, judge, ws, false);
