@@ -4,7 +4,8 @@
 //! where PEER.jsonl is the output of
 //! `python3 ../shared/peer/peer.py --est EST.csv --val VAL.csv --grid nb=.. nf=.. k=.. --out PEER.jsonl`.
 //!
-//! For every order pair it runs oesweep's least-squares phase and compares its criterion with
+//! For every order pair it runs oesweep's least-squares phase (in waves of nB + nF with the
+//! nested starts of the sub-models, as the sweep does) and compares its criterion with
 //! the peer's (`mse / 2`). For the Huber lines it runs oesweep's Huber phase with the *peer's*
 //! gamma, so both minimise the same W, and compares the criteria with a relative tolerance of
 //! 1e-4 (METHOD.md 8: local minima differ in the 5th digit):
@@ -15,9 +16,9 @@
 //! - `ls`: every peer cell on its own from theta_LS and each extra start.
 //!
 //! Prints the share of cells where oesweep is no worse, the worst cases, and the work done.
-//! Environment: OESWEEP_EXTRA_STARTS, OESWEEP_HUBER_TOL, OESWEEP_METHOD and
-//! OESWEEP_EXPLORE_ROWS override `solver.huber_extra_starts`, `solver.huber_tol`,
-//! `solver.method` and `solver.explore_rows`.
+//! Environment: OESWEEP_EXTRA_STARTS, OESWEEP_HUBER_TOL, OESWEEP_METHOD,
+//! OESWEEP_EXPLORE_ROWS and OESWEEP_NESTED_STARTS override `solver.huber_extra_starts`,
+//! `solver.huber_tol`, `solver.method`, `solver.explore_rows` and `solver.nested_starts`.
 
 use oesweep::estimate::{self, Judge, Problem, SolverOptions, Workspace};
 use rayon::prelude::*;
@@ -71,17 +72,45 @@ fn main() {
     if let Ok(v) = std::env::var("OESWEEP_EXPLORE_ROWS") {
         opts.explore_rows = v.parse().expect("a count");
     }
+    if let Ok(v) = std::env::var("OESWEEP_NESTED_STARTS") {
+        opts.nested_starts = v.parse().expect("true or false");
+    }
     let tol = 1e-4;
     let judge = Judge::default();
     let pairs: Vec<_> = by_pair.into_iter().collect();
     let t0 = Instant::now();
+    // The least-squares phase as the sweep runs it: in waves of equal nB + nF, each pair with
+    // the nested starts of its sub-models (METHOD.md 5.2, step 2).
+    let mut waves: BTreeMap<usize, Vec<(usize, usize)>> = BTreeMap::new();
+    for ((nb, nf), _) in &pairs {
+        waves.entry(nb + nf).or_default().push((*nb, *nf));
+    }
+    let mut ls_fits: BTreeMap<(usize, usize), (estimate::LsFit, f64)> = BTreeMap::new();
+    for wave in waves.values() {
+        let fitted: Vec<_> = wave
+            .par_iter()
+            .map_init(Workspace::new, |ws, &(nb, nf)| {
+                let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false };
+                let nested: Vec<Vec<f64>> = [(nb.wrapping_sub(1), nf), (nb, nf.wrapping_sub(1))]
+                    .iter()
+                    .filter(|_| opts.nested_starts)
+                    .filter_map(|k| ls_fits.get(k).filter(|(f, _)| f.ok()).map(|(f, _)| (k, f.theta())))
+                    .map(|(&(sb, sf), theta)| estimate::embed(&theta, sb, sf, &prob))
+                    .collect();
+                let t = Instant::now();
+                let ls = estimate::fit_ls_nested(&prob, &judge, &opts, &nested, ws);
+                ((nb, nf), (ls, t.elapsed().as_secs_f64()))
+            })
+            .collect();
+        ls_fits.extend(fitted);
+    }
     let results: Vec<PairResult> = pairs
         .par_iter()
         .map_init(Workspace::new, |ws, ((nb, nf), lines)| {
             let (nb, nf) = (*nb, *nf);
             let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false };
             let t = Instant::now();
-            let ls = estimate::fit_ls(&prob, &judge, &opts, ws);
+            let (ls, ls_seconds) = &ls_fits[&(nb, nf)];
             let mut ls_cmp = (f64::NAN, String::new());
             // (gamma, peer W): the peer's Huber cells of this pair.
             let mut peer_cells = Vec::new();
@@ -100,7 +129,7 @@ fn main() {
             let mut ours = vec![f64::INFINITY; peer_cells.len()];
             if strategy == "ls" {
                 for (o, &(gamma, _)) in ours.iter_mut().zip(&peer_cells) {
-                    let (h, _) = estimate::fit_huber_multi(&prob, &ls, gamma / ls.sigma, &judge, &opts, ws);
+                    let (h, _) = estimate::fit_huber_multi(&prob, ls, gamma / ls.sigma, &judge, &opts, ws);
                     iterations += h.iterations;
                     *o = h.criterion;
                 }
@@ -134,7 +163,7 @@ fn main() {
                     ((w - peer) / peer, format!("huber OE({nb},{nf}) k={k:.4}: ours {w:.8e} peer {peer:.8e}"))
                 })
                 .collect();
-            PairResult { ls: ls_cmp, huber, iterations, seconds: t.elapsed().as_secs_f64() }
+            PairResult { ls: ls_cmp, huber, iterations, seconds: ls_seconds + t.elapsed().as_secs_f64() }
         })
         .collect();
     let wall = t0.elapsed().as_secs_f64();

@@ -181,6 +181,7 @@ pub struct SolverSettings {
     pub huber_extra_starts: usize,
     pub method: Method,
     pub explore_rows: usize,
+    pub nested_starts: bool,
 }
 
 impl Default for SolverSettings {
@@ -198,6 +199,7 @@ impl Default for SolverSettings {
             huber_extra_starts: o.huber_extra_starts,
             method: o.method,
             explore_rows: o.explore_rows,
+            nested_starts: o.nested_starts,
         }
     }
 }
@@ -217,6 +219,7 @@ impl SolverSettings {
             huber_extra_starts: self.huber_extra_starts,
             method: self.method,
             explore_rows: self.explore_rows,
+            nested_starts: self.nested_starts,
         }
     }
 }

@@ -2,8 +2,9 @@
 //! (a pair and a k).
 //!
 //! Order is fixed and independent of threads: pairs in (delay, nB, nF) order, k in the job's
-//! order. The least-squares phase depends only on the pair (METHOD.md 5), so the pair is the
-//! unit that owns it and the cells of a pair share its result.
+//! order. The least-squares phase depends on the pair and, through its nested starts, on its
+//! sub-models' fits (METHOD.md 5.2), so the pairs are fitted in waves of nB + nF; the pair is
+//! the unit that owns its least-squares fit and the cells of a pair share it.
 
 use crate::job::{self, Job, StartStrategy, ValidJob};
 
@@ -28,6 +29,24 @@ fn pairs(nb: &[usize], nf: &[usize], delays: &[usize]) -> Vec<Pair> {
     out
 }
 
+/// Position of each pair in `pairs`.
+fn pair_index(pairs: &[Pair]) -> std::collections::HashMap<(usize, usize, usize), usize> {
+    pairs.iter().enumerate().map(|(i, p)| ((p.nb, p.nf, p.delay), i)).collect()
+}
+
+/// Indices of pair `i`'s sub-models (nB - 1, nF) and (nB, nF - 1), same delay, in `pairs`.
+fn sub_models(pairs: &[Pair], index: &std::collections::HashMap<(usize, usize, usize), usize>, i: usize) -> Vec<usize> {
+    let p = pairs[i];
+    let mut out = Vec::new();
+    if p.nb > 0 {
+        out.extend(index.get(&(p.nb - 1, p.nf, p.delay)));
+    }
+    if p.nf > 0 {
+        out.extend(index.get(&(p.nb, p.nf - 1, p.delay)));
+    }
+    out
+}
+
 /// One Huber cell: an order pair and an index into the k grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Cell {
@@ -40,11 +59,21 @@ pub struct Plan {
     pub pairs: Vec<Pair>,
     pub ks: Vec<f64>,
     pub start: StartStrategy,
+    /// Pairs outside `pairs` whose least-squares phase the plan needs for the nested starts of
+    /// its own (METHOD.md 5.2, step 2): their sub-models down the grid. Empty for a whole grid;
+    /// a shard's plan ([`Plan::with_pairs`]) lists the sub-models another shard owns. They
+    /// give no rows.
+    pub ls_support: Vec<Pair>,
 }
 
 impl Plan {
     pub fn from_job(job: &ValidJob) -> Plan {
-        Plan { pairs: pairs(&job.nb, &job.nf, &job.delays), ks: job.ks.clone(), start: job.job.start }
+        Plan {
+            pairs: pairs(&job.nb, &job.nf, &job.delays),
+            ks: job.ks.clone(),
+            start: job.job.start,
+            ls_support: Vec::new(),
+        }
     }
 
     /// The plan of a job that was validated before (the job file a run leaves in its
@@ -55,14 +84,58 @@ impl Plan {
         let [d0, d1] = job.grid.delay.unwrap_or([job.delay.unwrap_or(job::DEFAULT_DELAY); 2]);
         let (nb, nf, delays): (Vec<usize>, Vec<usize>, Vec<usize>) =
             ((b0..=b1).collect(), (f0..=f1).collect(), (d0..=d1).collect());
-        Plan { pairs: pairs(&nb, &nf, &delays), ks: job::k_values(&job.grid.k), start: job.start }
+        Plan {
+            pairs: pairs(&nb, &nf, &delays),
+            ks: job::k_values(&job.grid.k),
+            start: job.start,
+            ls_support: Vec::new(),
+        }
     }
 
     /// This plan restricted to some of its pairs (indices into `pairs`, in the order given):
     /// a shard's plan ([`crate::shard`]). A pair's cells are computed exactly as in the full
-    /// plan, since nothing in a cell depends on the other pairs.
+    /// plan: a cell depends on no other pair but through the least-squares phase's nested
+    /// starts, and the sub-models those come from are kept as `ls_support`.
     pub fn with_pairs(&self, pairs: &[usize]) -> Plan {
-        Plan { pairs: pairs.iter().map(|&p| self.pairs[p]).collect(), ..self.clone() }
+        let own: Vec<Pair> = pairs.iter().map(|&p| self.pairs[p]).collect();
+        let all = self.ls_pairs();
+        let index = pair_index(&all);
+        let mut needed = vec![false; all.len()];
+        let mut stack: Vec<usize> = pairs.to_vec();
+        while let Some(i) = stack.pop() {
+            for j in sub_models(&all, &index, i) {
+                if !needed[j] {
+                    needed[j] = true;
+                    stack.push(j);
+                }
+            }
+        }
+        let ls_support = (0..all.len()).filter(|&j| needed[j] && !own.contains(&all[j])).map(|j| all[j]).collect();
+        Plan { pairs: own, ls_support, ..self.clone() }
+    }
+
+    /// The pairs whose least-squares phase the plan runs: `pairs`, then `ls_support`.
+    pub fn ls_pairs(&self) -> Vec<Pair> {
+        self.pairs.iter().chain(&self.ls_support).copied().collect()
+    }
+
+    /// Indices into [`Plan::ls_pairs`] in waves of equal nB + nF, increasing: every pair's
+    /// sub-models are in an earlier wave, and the pairs of one wave are independent.
+    pub fn ls_waves(&self) -> Vec<Vec<usize>> {
+        let all = self.ls_pairs();
+        let mut waves: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
+        for (i, p) in all.iter().enumerate() {
+            waves.entry(p.nb + p.nf).or_default().push(i);
+        }
+        waves.into_values().collect()
+    }
+
+    /// Per pair of [`Plan::ls_pairs`], the indices of its sub-models (nB - 1, nF) and
+    /// (nB, nF - 1) with its delay, those the plan has.
+    pub fn ls_sub_models(&self) -> Vec<Vec<usize>> {
+        let all = self.ls_pairs();
+        let index = pair_index(&all);
+        (0..all.len()).map(|i| sub_models(&all, &index, i)).collect()
     }
 
     pub fn n_cells(&self) -> usize {

@@ -6,7 +6,12 @@
 //! continuation chain (`start: chains | neighbour | best`) runs through all of them in order. Splitting a
 //! pair would either compute its least-squares phase twice or make one shard wait for
 //! another; giving every pair to exactly one shard does neither, and each shard is then simply
-//! the sweep of a smaller plan, computed by the same code with the same bits.
+//! the sweep of a smaller plan, computed by the same code with the same bits. The one link
+//! between pairs is the least-squares phase's nested starts (`solver.nested_starts`, METHOD.md
+//! 5.2 step 2): a pair starts from its sub-models' fits, so a shard's plan also lists those
+//! sub-models that other shards own (`Plan::ls_support`) and fits them again, without rows.
+//! That repeats least-squares work (a shard owning the largest pair refits every smaller one);
+//! `solver.nested_starts: false` makes the pairs independent again.
 //!
 //! **Deterministic layout.** Every shard process computes the whole layout from the job alone
 //! and takes its own part, so no coordinator and no shared state are needed: same job and
@@ -200,7 +205,12 @@ mod tests {
 
     fn plan(nb: std::ops::RangeInclusive<usize>, nf: std::ops::RangeInclusive<usize>, n_k: usize) -> Plan {
         let pairs = nb.flat_map(|b| nf.clone().map(move |f| Pair { nb: b, nf: f, delay: 1 })).collect();
-        Plan { pairs, ks: (1..=n_k).map(|i| i as f64 / 10.0).collect(), start: StartStrategy::Ls }
+        Plan {
+            pairs,
+            ks: (1..=n_k).map(|i| i as f64 / 10.0).collect(),
+            start: StartStrategy::Ls,
+            ls_support: Vec::new(),
+        }
     }
 
     #[test]

@@ -173,11 +173,19 @@ fn run_in_pool(
     let stopped = || stop.load(Ordering::Relaxed);
     let huber_key = |cell: Cell| huber_key(&plan.pairs[cell.pair], cell.k_index);
     progress.message("least-squares phase");
-    // The least-squares phase of one pair: (the pair's fit, whether it was computed in this
-    // run); None: stopped before it.
-    let pair_ls = |pair: &crate::plan::Pair, p: usize, ws: &mut Workspace| -> Option<(PairLs, bool)> {
-        let resumed = done.get(&ls_key(pair));
-        let all_done = (0..plan.ks.len()).all(|k| done.contains_key(&huber_key(Cell { pair: p, k_index: k })));
+    // The least-squares phase of one pair of `plan.ls_pairs()` (index `p`; beyond the plan's
+    // own pairs, a sub-model kept for its nested start only, which gives no row) from the
+    // `nested` starts: (the pair's fit, whether it is a row computed in this run); None:
+    // stopped before it.
+    let own = plan.pairs.len();
+    let pair_ls = |pair: &crate::plan::Pair, p: usize, nested: &[Vec<f64>], ws: &mut Workspace| {
+        // Without nested starts no pair needs another's fit.
+        if p >= own && !ctx.solver.nested_starts {
+            return None;
+        }
+        let resumed = if p < own { done.get(&ls_key(pair)) } else { None };
+        let all_done =
+            p < own && (0..plan.ks.len()).all(|k| done.contains_key(&huber_key(Cell { pair: p, k_index: k })));
         if let (Some(row), true) = (resumed, all_done) {
             return Some((PairLs::from_row(ctx, row.clone(), Vec::new()), false));
         }
@@ -188,33 +196,54 @@ fn run_in_pool(
         let t = Instant::now();
         // A resumed pair with cells left is fitted again for its extra Huber starts: the
         // least-squares phase is deterministic, so this reproduces the interrupted run.
-        let (row, alternatives) =
-            match catch_unwind(AssertUnwindSafe(|| estimate::fit_ls(&prob, &judge, &ctx.solver, ws))) {
-                Ok(fit) => (ctx.with_offset(CellRow::from_ls(&fit, t.elapsed().as_secs_f64())), fit.alternatives),
-                Err(e) => {
-                    let reason = format!("least-squares phase panicked: {}", panic_message(e));
-                    (CellRow::failed(Method::Ls, pair.nb, pair.nf, pair.delay, None, reason), Vec::new())
-                }
-            };
+        let fit = catch_unwind(AssertUnwindSafe(|| estimate::fit_ls_nested(&prob, &judge, &ctx.solver, nested, ws)));
+        let (row, alternatives) = match fit {
+            Ok(fit) => (ctx.with_offset(CellRow::from_ls(&fit, t.elapsed().as_secs_f64())), fit.alternatives),
+            Err(e) => {
+                let reason = format!("least-squares phase panicked: {}", panic_message(e));
+                (CellRow::failed(Method::Ls, pair.nb, pair.nf, pair.delay, None, reason), Vec::new())
+            }
+        };
         if let Some(row) = resumed {
             return Some((PairLs::from_row(ctx, row.clone(), alternatives), false));
         }
-        on_row(&row);
-        Some((PairLs::from_row(ctx, row, alternatives), true))
+        if p < own {
+            on_row(&row);
+        }
+        Some((PairLs::from_row(ctx, row, alternatives), p < own))
     };
-    // Largest pairs first, one task each, so a phase ends on small pairs rather than on one
-    // large pair while the other workers idle; the results go back into plan order.
+    // In waves of equal nB + nF, so that a pair's sub-models are fitted before it (nested
+    // starts, METHOD.md 5.2, step 2); the pairs of a wave in parallel, one task each. The
+    // nested starts are read from the sub-models' rows, as a resumed run reads them, so both
+    // give the same bits.
+    let ls_pairs = plan.ls_pairs();
+    let subs = plan.ls_sub_models();
+    let mut ls: Vec<Option<(PairLs, bool)>> = (0..ls_pairs.len()).map(|_| None).collect();
+    for wave in plan.ls_waves() {
+        let fitted: Vec<(usize, Option<(PairLs, bool)>)> = wave
+            .par_iter()
+            .with_max_len(1)
+            .map_init(Workspace::new, |ws, &p| {
+                let pair = &ls_pairs[p];
+                let prob = ctx.problem(pair);
+                let subs: &[usize] = if ctx.solver.nested_starts { &subs[p] } else { &[] };
+                let nested: Vec<Vec<f64>> = subs
+                    .iter()
+                    .filter_map(|&s| {
+                        let (sub, _) = ls[s].as_ref()?;
+                        let (_, theta) = sub.start.as_ref()?;
+                        Some(estimate::embed(theta, ls_pairs[s].nb, ls_pairs[s].nf, &prob))
+                    })
+                    .collect();
+                (p, pair_ls(pair, p, &nested, ws))
+            })
+            .collect();
+        for (p, fit) in fitted {
+            ls[p] = fit;
+        }
+    }
+    ls.truncate(own);
     let by_cost = plan.pairs_by_cost();
-    let mut ls: Vec<(usize, Option<(PairLs, bool)>)> = by_cost
-        .par_iter()
-        .with_max_len(1)
-        .map_init(Workspace::new, |ws, &p| {
-            let pair = &plan.pairs[p];
-            (p, pair_ls(pair, p, ws))
-        })
-        .collect();
-    ls.sort_by_key(|(p, _)| *p);
-    let ls: Vec<Option<(PairLs, bool)>> = ls.into_iter().map(|(_, v)| v).collect();
     progress.message("Huber phase");
 
     let huber_rows: Vec<CellRow> = match plan.start {

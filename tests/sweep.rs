@@ -97,3 +97,49 @@ fn thread_count_does_not_change_the_table() {
         assert_eq!(one, two, "start = {start}");
     }
 }
+
+/// The least-squares criterion of a larger model is never above its sub-models' (nested
+/// starts, METHOD.md 5.2 step 2): on the bundled piezo data, OE(8..9, 7..8) with the paper's
+/// model, where the independently fitted pairs break this twice.
+#[test]
+fn a_larger_model_never_fits_worse_in_least_squares() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data");
+    let ls_criteria = |nested: bool| -> std::collections::HashMap<(u32, u32), f64> {
+        let out = format!("nested-{nested}");
+        let job = serde_json::json!({
+            "name": "nested",
+            "data": {"path": data.join("piezo_est.csv"), "ts": 1e-4},
+            "validation": {"path": data.join("piezo_val.csv"), "y": "y0"},
+            "offset": "none",
+            "initial_state": "zero",
+            "grid": {"nb": [8, 9], "nf": [7, 8], "k": [1.0]},
+            "solver": {"nested_starts": nested},
+            "output": out,
+        });
+        let p = dir.path().join(format!("{out}.json"));
+        std::fs::write(&p, job.to_string()).unwrap();
+        run(&p, "2")
+            .into_iter()
+            .filter(|r| r.method == Method::Ls)
+            .map(|r| ((r.nb, r.nf), r.criterion.unwrap()))
+            .collect()
+    };
+    let rises = |v: &std::collections::HashMap<(u32, u32), f64>| -> usize {
+        let mut n = 0;
+        for (&(nb, nf), &c) in v {
+            for larger in [(nb + 1, nf), (nb, nf + 1)] {
+                n += v.get(&larger).is_some_and(|&l| l > c * (1.0 + 1e-12)) as usize;
+            }
+        }
+        n
+    };
+    let independent = ls_criteria(false);
+    let nested = ls_criteria(true);
+    assert_eq!(independent.len(), 4);
+    assert!(rises(&independent) > 0, "the case no longer exercises the nested starts: {independent:?}");
+    assert_eq!(rises(&nested), 0, "{nested:?}");
+    for (pair, c) in &nested {
+        assert!(*c <= independent[pair], "{pair:?}: {c} nested, {} independent", independent[pair]);
+    }
+}

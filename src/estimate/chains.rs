@@ -138,8 +138,7 @@ impl Chains {
 /// starts every cell there would: that is where the Huber minimum lies nearest theta_LS, while
 /// the chains arrive from below, possibly in another basin. A lower fit is walked down like a
 /// jump. Against the scipy peer's 8-k grid this took the Huber cells no worse from 744 to 761
-/// of 768 on the bundled record and from 753 to 763 on a held-out one (with the least-squares
-/// phase's extra minimum), for one fit per pair.
+/// of 768 on the bundled record and from 753 to 763 on a held-out one, for one fit per pair.
 #[derive(Clone, Debug, Default)]
 pub struct ChainWalk {
     /// Per k: the cell's fit and where it came from (the winning chain, or the backward

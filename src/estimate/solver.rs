@@ -48,17 +48,6 @@ pub enum Method {
     Separable,
 }
 
-impl Method {
-    /// The other method: the least-squares phase minimises one start with each
-    /// ([`super::fit_ls`]).
-    pub fn other(self) -> Method {
-        match self {
-            Method::Lm => Method::Separable,
-            Method::Separable => Method::Lm,
-        }
-    }
-}
-
 /// Solver settings (the job file's schema of them is [`crate::job::SolverSettings`]). Defaults
 /// are tight enough to match a scipy trust-region fit to ~1e-8.
 #[derive(Clone, Debug, PartialEq)]
@@ -95,6 +84,11 @@ pub struct SolverOptions {
     /// `explore_rows` samples and minimise only the best few on the whole record
     /// ([`super::fit_ls`]); 0 = explore on the whole record.
     pub explore_rows: usize,
+    /// The sweep's least-squares phase also starts each pair from its sub-models' solutions,
+    /// (nB - 1, nF) and (nB, nF - 1) (METHOD.md 5.2, step 2): pairs are then fitted in waves
+    /// of nB + nF, and a shard also fits the sub-models of its pairs. false = independent
+    /// pairs.
+    pub nested_starts: bool,
 }
 
 impl Default for SolverOptions {
@@ -111,6 +105,7 @@ impl Default for SolverOptions {
             huber_extra_starts: 2,
             method: Method::Lm,
             explore_rows: 16384,
+            nested_starts: true,
         }
     }
 }
