@@ -79,38 +79,45 @@ fn main() {
     let judge = Judge::default();
     let pairs: Vec<_> = by_pair.into_iter().collect();
     let t0 = Instant::now();
-    // The least-squares phase as the sweep runs it: in waves of equal nB + nF, each pair with
-    // the nested starts of its sub-models (METHOD.md 5.2, step 2).
-    let mut waves: BTreeMap<usize, Vec<(usize, usize)>> = BTreeMap::new();
-    for ((nb, nf), _) in &pairs {
-        waves.entry(nb + nf).or_default().push((*nb, *nf));
-    }
-    let mut ls_fits: BTreeMap<(usize, usize), (estimate::LsFit, f64)> = BTreeMap::new();
-    for wave in waves.values() {
+    // The least-squares phase as the sweep runs it: in the plan's waves of equal nB + nF, each
+    // pair with the nested starts of its sub-models (METHOD.md 5.2, step 2).
+    let plan = oesweep::plan::Plan {
+        pairs: pairs.iter().map(|((nb, nf), _)| oesweep::plan::Pair { nb: *nb, nf: *nf, delay: 1 }).collect(),
+        ks: Vec::new(),
+        start: Default::default(),
+        ls_support: Vec::new(),
+    };
+    let subs = plan.ls_sub_models();
+    let mut ls_fits: Vec<Option<(estimate::LsFit, f64)>> = (0..plan.pairs.len()).map(|_| None).collect();
+    for wave in plan.ls_waves() {
         let fitted: Vec<_> = wave
             .par_iter()
-            .map_init(Workspace::new, |ws, &(nb, nf)| {
+            .map_init(Workspace::new, |ws, &p| {
+                let (nb, nf) = (plan.pairs[p].nb, plan.pairs[p].nf);
                 let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false };
-                let nested: Vec<Vec<f64>> = [(nb.wrapping_sub(1), nf), (nb, nf.wrapping_sub(1))]
+                let subs: &[usize] = if opts.nested_starts { &subs[p] } else { &[] };
+                let nested: Vec<Vec<f64>> = subs
                     .iter()
-                    .filter(|_| opts.nested_starts)
-                    .filter_map(|k| ls_fits.get(k).filter(|(f, _)| f.ok()).map(|(f, _)| (k, f.theta())))
-                    .map(|(&(sb, sf), theta)| estimate::embed(&theta, sb, sf, &prob))
+                    .filter_map(|&s| ls_fits[s].as_ref().filter(|(f, _)| f.ok()).map(|(f, _)| (s, f.theta())))
+                    .map(|(s, theta)| estimate::embed(&theta, plan.pairs[s].nb, plan.pairs[s].nf, &prob))
                     .collect();
                 let t = Instant::now();
                 let ls = estimate::fit_ls_nested(&prob, &judge, &opts, &nested, ws);
-                ((nb, nf), (ls, t.elapsed().as_secs_f64()))
+                (p, (ls, t.elapsed().as_secs_f64()))
             })
             .collect();
-        ls_fits.extend(fitted);
+        for (p, fit) in fitted {
+            ls_fits[p] = Some(fit);
+        }
     }
     let results: Vec<PairResult> = pairs
         .par_iter()
-        .map_init(Workspace::new, |ws, ((nb, nf), lines)| {
+        .zip(&ls_fits)
+        .map_init(Workspace::new, |ws, (((nb, nf), lines), fit)| {
             let (nb, nf) = (*nb, *nf);
             let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false };
             let t = Instant::now();
-            let (ls, ls_seconds) = &ls_fits[&(nb, nf)];
+            let (ls, ls_seconds) = fit.as_ref().expect("every pair fitted");
             let mut ls_cmp = (f64::NAN, String::new());
             // (gamma, peer W): the peer's Huber cells of this pair.
             let mut peer_cells = Vec::new();
