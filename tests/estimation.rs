@@ -418,3 +418,34 @@ fn the_top_cell_is_no_worse_than_its_fit_from_theta_ls() {
     }
     assert!(lower > 0, "the fit from theta_LS was not walked down");
 }
+
+/// A losing chain that converged, but only after `Chains::SLOW_ITERATIONS` or more, is put on
+/// the creeping budget too: a chain that creeps along the boundary and stops on the criterion
+/// tolerance just under the cap would otherwise pay that at every cell.
+#[test]
+fn a_slow_losing_chain_runs_on_the_creeping_budget_too() {
+    let (b, f) = oe1010();
+    let u = binary_input(3000, 3, 10.0, 7);
+    let mut rng = Lcg(9);
+    let y: Vec<f64> = oe::simulate_vec(&b, &f, 1, &u).iter().map(|v| v + 0.1 * rng.normal()).collect();
+    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false };
+    let (judge, mut ws) = (Judge::default(), Workspace::new());
+    let opts = SolverOptions::default();
+    let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
+    let mut far = ls.theta();
+    for v in &mut far[..b.len()] {
+        *v *= 0.2;
+    }
+    for (j, v) in far[b.len()..].iter_mut().enumerate() {
+        *v *= 0.6f64.powi(j as i32 + 1);
+    }
+    let pair = estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts };
+    // The far chain's own first fit, as the step runs it (cold settings).
+    let alone = solver::minimise(&prob, Loss::Huber { gamma: 3.0 * ls.sigma }, &far, &opts.huber(), &mut ws);
+    let mut chains = estimate::Chains::new(&ls.theta(), &[far]);
+    let (_, which) = chains.step(&pair, 3.0, &mut ws);
+    assert_eq!(which, 0);
+    assert!(alone.termination.converged(), "the case needs a fit that converges: {:?}", alone.termination);
+    assert!(alone.iterations >= estimate::Chains::SLOW_ITERATIONS, "{} iterations", alone.iterations);
+    assert_eq!((chains.live(), chains.creeping()), (2, 1), "the slow losing chain is not on the budget");
+}
