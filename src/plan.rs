@@ -100,6 +100,11 @@ impl Plan {
         let own: Vec<Pair> = pairs.iter().map(|&p| self.pairs[p]).collect();
         let all = self.ls_pairs();
         let index = pair_index(&all);
+        // `pairs` index `self.pairs`, the head of `all`.
+        let mut is_own = vec![false; all.len()];
+        for &p in pairs {
+            is_own[p] = true;
+        }
         let mut needed = vec![false; all.len()];
         let mut stack: Vec<usize> = pairs.to_vec();
         while let Some(i) = stack.pop() {
@@ -110,7 +115,7 @@ impl Plan {
                 }
             }
         }
-        let ls_support = (0..all.len()).filter(|&j| needed[j] && !own.contains(&all[j])).map(|j| all[j]).collect();
+        let ls_support = (0..all.len()).filter(|&j| needed[j] && !is_own[j]).map(|j| all[j]).collect();
         Plan { pairs: own, ls_support, ..self.clone() }
     }
 

@@ -32,13 +32,7 @@ fn recover(b: &[f64], f: &[f64], n: usize) {
     }
     // The solver itself (not only the ARX/IV start) must find the truth from a poor start:
     // scale B by 1/2 and shrink the poles towards the origin.
-    let mut start = truth.clone();
-    for v in &mut start[..b.len()] {
-        *v *= 0.5;
-    }
-    for (j, v) in start[b.len()..].iter_mut().enumerate() {
-        *v *= 0.97f64.powi(j as i32 + 1);
-    }
+    let start = shrunk(&truth, b.len(), 0.5, 0.97);
     let ls2 = estimate::fit_ls_from(&prob, &start, &judge, &opts, &mut ws);
     assert!(ls2.termination.converged(), "{:?}", ls2.termination);
     assert_params(&ls2.theta(), &truth, 1e-6, "L2 from a perturbed start");
@@ -290,26 +284,60 @@ fn warm_damping_converges_to_a_minimum_in_fewer_iterations() {
     assert!(sol.termination.converged(), "{:?}", sol.termination);
 }
 
-/// A losing chain that runs out of iterations stays in the race on a budget of
-/// `Chains::CREEP_ITERATIONS` per cell, and leaves that budget once a fit of it converges.
-#[test]
-fn a_losing_chain_out_of_iterations_runs_on_the_creeping_budget() {
+/// Noisy data of the OE(10,10) system on a binary input: (u, y, nB, nF).
+fn oe1010_record() -> (Vec<f64>, Vec<f64>, usize, usize) {
     let (b, f) = oe1010();
     let u = binary_input(3000, 3, 10.0, 7);
     let mut rng = Lcg(9);
     let y: Vec<f64> = oe::simulate_vec(&b, &f, 1, &u).iter().map(|v| v + 0.1 * rng.normal()).collect();
-    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false };
+    (u, y, b.len(), f.len())
+}
+
+/// `theta` moved away: B scaled by `b_scale`, every pole's radius by `pole_scale` (towards the
+/// origin for a scale below 1).
+fn shrunk(theta: &[f64], nb: usize, b_scale: f64, pole_scale: f64) -> Vec<f64> {
+    let mut out = theta.to_vec();
+    for v in &mut out[..nb] {
+        *v *= b_scale;
+    }
+    for (j, v) in out[nb..].iter_mut().enumerate() {
+        *v *= pole_scale.powi(j as i32 + 1);
+    }
+    out
+}
+
+/// The bundled piezo estimation record.
+fn piezo_estimation_record() -> oesweep::data::Record {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_est.csv");
+    oesweep::data::read_record(&path, "u", "y").unwrap()
+}
+
+/// The paper grid's 40 log-spaced k over [0.05, 2].
+fn paper_ks() -> Vec<f64> {
+    (0..40).map(|i| 0.05 * (2.0f64 / 0.05).powf(i as f64 / 39.0)).collect()
+}
+
+/// The up walk of the `chains` strategy over `ks` from `ls` and its extra starts.
+fn walk_up(pair: &estimate::PairProblem, ls: &estimate::LsFit, ks: &[f64], ws: &mut Workspace) -> estimate::ChainWalk {
+    let mut chains = estimate::Chains::new(&ls.theta(), &ls.alternatives);
+    let mut walk = estimate::ChainWalk::default();
+    for &k in ks {
+        let (fit, which) = chains.step(pair, k, ws);
+        walk.cells.push(Some((fit, estimate::StartKind::Chain { start: which })));
+    }
+    walk
+}
+
+/// A losing chain that runs out of iterations stays in the race on a budget of
+/// `Chains::CREEP_ITERATIONS` per cell, and leaves that budget once a fit of it converges.
+#[test]
+fn a_losing_chain_out_of_iterations_runs_on_the_creeping_budget() {
+    let (u, y, nb, nf) = oe1010_record();
+    let prob = Problem { u: &u, y: &y, nb, nf, delay: 1, offset: false };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
-    // A far start: B shrunk, poles pulled towards the origin.
-    let mut far = ls.theta();
-    for v in &mut far[..b.len()] {
-        *v *= 0.2;
-    }
-    for (j, v) in far[b.len()..].iter_mut().enumerate() {
-        *v *= 0.6f64.powi(j as i32 + 1);
-    }
+    let far = shrunk(&ls.theta(), nb, 0.2, 0.6);
     let short = SolverOptions { max_iterations: 2 * estimate::Chains::CREEP_ITERATIONS, ..opts.clone() };
     let mut chains = estimate::Chains::new(&ls.theta(), &[far]);
     ws.record_trace = true;
@@ -342,21 +370,15 @@ fn a_losing_chain_out_of_iterations_runs_on_the_creeping_budget() {
 /// it, and never leaves a cell worse than the up walk did.
 #[test]
 fn the_backward_walk_finds_the_branch_below_a_fold_and_is_never_worse() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_est.csv");
-    let rec = oesweep::data::read_record(&path, "u", "y").unwrap();
+    let rec = piezo_estimation_record();
     let prob = Problem { u: &rec.u, y: &rec.y, nb: 8, nf: 4, delay: 1, offset: false };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
     // The paper grid's k up to 0.2.
-    let ks: Vec<f64> = (0..16).map(|i| 0.05 * (2.0f64 / 0.05).powf(i as f64 / 39.0)).collect();
-    let mut chains = estimate::Chains::new(&ls.theta(), &ls.alternatives);
-    let mut walk = estimate::ChainWalk::default();
+    let ks: Vec<f64> = paper_ks()[..16].to_vec();
     let pair = estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts };
-    for &k in &ks {
-        let (fit, which) = chains.step(&pair, k, &mut ws);
-        walk.cells.push(Some((fit, estimate::StartKind::Chain { start: which })));
-    }
+    let mut walk = walk_up(&pair, &ls, &ks, &mut ws);
     let up: Vec<f64> = walk.cells.iter().map(|c| c.as_ref().unwrap().0.criterion).collect();
     let seconds = walk.walk_back(&pair, &ks, &ls.theta(), &mut ws);
     assert_eq!(seconds.len(), ks.len());
@@ -386,20 +408,14 @@ fn the_backward_walk_finds_the_branch_below_a_fold_and_is_never_worse() {
 /// and walks it down.
 #[test]
 fn the_top_cell_is_no_worse_than_its_fit_from_theta_ls() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_est.csv");
-    let rec = oesweep::data::read_record(&path, "u", "y").unwrap();
+    let rec = piezo_estimation_record();
     let prob = Problem { u: &rec.u, y: &rec.y, nb: 14, nf: 11, delay: 1, offset: false };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
-    let ks: Vec<f64> = (0..40).map(|i| 0.05 * (2.0f64 / 0.05).powf(i as f64 / 39.0)).collect();
-    let mut chains = estimate::Chains::new(&ls.theta(), &ls.alternatives);
-    let mut walk = estimate::ChainWalk::default();
+    let ks = paper_ks();
     let pair = estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts };
-    for &k in &ks {
-        let (fit, which) = chains.step(&pair, k, &mut ws);
-        walk.cells.push(Some((fit, estimate::StartKind::Chain { start: which })));
-    }
+    let mut walk = walk_up(&pair, &ls, &ks, &mut ws);
     let up: Vec<f64> = walk.cells.iter().map(|c| c.as_ref().unwrap().0.criterion).collect();
     let gamma = ks[39] * ls.sigma;
     let from_ls = estimate::solver::minimise(&prob, Loss::Huber { gamma }, &ls.theta(), &opts.huber_warm(), &mut ws);
@@ -424,21 +440,12 @@ fn the_top_cell_is_no_worse_than_its_fit_from_theta_ls() {
 /// tolerance just under the cap would otherwise pay that at every cell.
 #[test]
 fn a_slow_losing_chain_runs_on_the_creeping_budget_too() {
-    let (b, f) = oe1010();
-    let u = binary_input(3000, 3, 10.0, 7);
-    let mut rng = Lcg(9);
-    let y: Vec<f64> = oe::simulate_vec(&b, &f, 1, &u).iter().map(|v| v + 0.1 * rng.normal()).collect();
-    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false };
+    let (u, y, nb, nf) = oe1010_record();
+    let prob = Problem { u: &u, y: &y, nb, nf, delay: 1, offset: false };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
-    let mut far = ls.theta();
-    for v in &mut far[..b.len()] {
-        *v *= 0.2;
-    }
-    for (j, v) in far[b.len()..].iter_mut().enumerate() {
-        *v *= 0.6f64.powi(j as i32 + 1);
-    }
+    let far = shrunk(&ls.theta(), nb, 0.2, 0.6);
     let pair = estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts };
     // The far chain's own first fit, as the step runs it (cold settings).
     let alone = solver::minimise(&prob, Loss::Huber { gamma: 3.0 * ls.sigma }, &far, &opts.huber(), &mut ws);
