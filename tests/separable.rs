@@ -1,10 +1,12 @@
 //! The separable (variable projection) solver, `solver.method = "separable"` (METHOD.md 5.6):
 //! known solutions, the inner optimum, the invariants of the outer iteration, and agreement
-//! with the full Levenberg-Marquardt solver on noisy data.
+//! with the full Levenberg-Marquardt solver on noisy data; and the exploration of a long
+//! record on its head (`solver.explore_rows`, METHOD.md 5.2 step 5 and 5.5).
 
 mod common;
 
 use common::*;
+use oesweep::estimate::chains::{CellOutcome, PairProblem, walk_pair};
 use oesweep::estimate::normal::{Layout, NormalEquations};
 use oesweep::estimate::{self, Judge, Loss, Method, Problem, SolverOptions, Workspace, solver};
 use oesweep::oe;
@@ -200,5 +202,46 @@ fn exploring_the_starts_on_the_head_reaches_the_whole_record_minima() {
             ha.criterion,
             hb.criterion
         );
+    }
+}
+
+/// On a record longer than `solver.explore_rows` the chains walk on its head and each cell is
+/// then fitted on the whole record from there: every cell reaches the whole-record walk's
+/// minimum (or a lower one), and is a fit of the whole record.
+#[test]
+fn walking_the_chains_on_the_head_reaches_the_whole_record_cells() {
+    let (u, y) = spiky(40_000, 1.0);
+    let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true };
+    let judge = Judge::default();
+    let mut ws = Workspace::new();
+    let whole = SolverOptions { explore_rows: 0, ..SolverOptions::default() };
+    let head = SolverOptions { explore_rows: 4096, ..SolverOptions::default() };
+    let ls = estimate::fit_ls(&prob, &judge, &whole, &mut ws);
+    let ks: Vec<(usize, f64)> = (0..10).map(|i| (i, 0.05 * 40f64.powf(i as f64 / 9.0))).collect();
+    let done = vec![false; ks.len()];
+    let mut walk = |opts: &SolverOptions| {
+        let pair = PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts };
+        let cells = walk_pair(&pair, &ls.theta(), &ls.alternatives, &ks, &done, &|| false, &mut ws).unwrap();
+        cells
+            .into_iter()
+            .map(|(_, c)| match c {
+                CellOutcome::Fit { fit, .. } => *fit,
+                CellOutcome::Panicked(r) => panic!("{r}"),
+            })
+            .collect::<Vec<_>>()
+    };
+    let (a, b) = (walk(&whole), walk(&head));
+    for (x, z) in a.iter().zip(&b) {
+        assert!(
+            z.criterion <= x.criterion * (1.0 + 1e-6),
+            "k = {}: {} on the head, {} whole",
+            x.k,
+            z.criterion,
+            x.criterion
+        );
+        // A fit of the whole record: its W is that of its parameters there.
+        let yhat = prob.simulate_vec(&z.theta());
+        let w = Loss::Huber { gamma: z.gamma }.criterion(&y, &yhat);
+        assert!((w - z.criterion).abs() <= 1e-9 * w, "k = {}: {w} vs {}", z.k, z.criterion);
     }
 }
