@@ -284,13 +284,33 @@ fn warm_damping_converges_to_a_minimum_in_fewer_iterations() {
     assert!(sol.termination.converged(), "{:?}", sol.termination);
 }
 
-/// Noisy data of the OE(10,10) system on a binary input: (u, y, nB, nF).
-fn oe1010_record() -> (Vec<f64>, Vec<f64>, usize, usize) {
-    let (b, f) = oe1010();
-    let u = binary_input(3000, 3, 10.0, 7);
-    let mut rng = Lcg(9);
-    let y: Vec<f64> = oe::simulate_vec(&b, &f, 1, &u).iter().map(|v| v + 0.1 * rng.normal()).collect();
-    (u, y, b.len(), f.len())
+/// The creeping-budget tests' case: noisy data of the OE(10,10) system on a binary input.
+struct Oe1010 {
+    u: Vec<f64>,
+    y: Vec<f64>,
+    nb: usize,
+    nf: usize,
+}
+
+impl Oe1010 {
+    fn new() -> Self {
+        let (b, f) = oe1010();
+        let u = binary_input(3000, 3, 10.0, 7);
+        let mut rng = Lcg(9);
+        let y: Vec<f64> = oe::simulate_vec(&b, &f, 1, &u).iter().map(|v| v + 0.1 * rng.normal()).collect();
+        Oe1010 { u, y, nb: b.len(), nf: f.len() }
+    }
+
+    fn prob(&self) -> Problem<'_> {
+        Problem { u: &self.u, y: &self.y, nb: self.nb, nf: self.nf, delay: 1, offset: false }
+    }
+
+    /// The least-squares fit (default settings) and a start far from it (see [`shrunk`]).
+    fn ls_and_far(&self, b_scale: f64, pole_scale: f64, ws: &mut Workspace) -> (estimate::LsFit, Vec<f64>) {
+        let ls = estimate::fit_ls(&self.prob(), &Judge::default(), &SolverOptions::default(), ws);
+        let far = shrunk(&ls.theta(), self.nb, b_scale, pole_scale);
+        (ls, far)
+    }
 }
 
 /// `theta` moved away: B scaled by `b_scale`, every pole's radius by `pole_scale` (towards the
@@ -334,12 +354,10 @@ fn walk_up(pair: &estimate::PairProblem, ls: &estimate::LsFit, ks: &[f64], ws: &
 /// meets the tolerance before the next cell creeps for hundreds of iterations).
 #[test]
 fn a_losing_chain_out_of_iterations_runs_on_the_creeping_budget() {
-    let (u, y, nb, nf) = oe1010_record();
-    let prob = Problem { u: &u, y: &y, nb, nf, delay: 1, offset: false };
-    let (judge, mut ws) = (Judge::default(), Workspace::new());
-    let opts = SolverOptions::default();
-    let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
-    let far = shrunk(&ls.theta(), nb, 0.2, 0.6);
+    let case = Oe1010::new();
+    let prob = case.prob();
+    let (judge, opts, mut ws) = (Judge::default(), SolverOptions::default(), Workspace::new());
+    let (ls, far) = case.ls_and_far(0.2, 0.6, &mut ws);
     let short = SolverOptions { max_iterations: 2 * estimate::Chains::CREEP_ITERATIONS, ..opts.clone() };
     let mut chains = estimate::Chains::new(&ls.theta(), &[far]);
     ws.record_trace = true;
@@ -370,12 +388,10 @@ fn a_losing_chain_out_of_iterations_runs_on_the_creeping_budget() {
 /// OE(12,13): 2 iterations at one k, 226 at the next, over and over).
 #[test]
 fn a_creeping_chain_keeps_its_budget_while_it_loses() {
-    let (u, y, nb, nf) = oe1010_record();
-    let prob = Problem { u: &u, y: &y, nb, nf, delay: 1, offset: false };
-    let (judge, mut ws) = (Judge::default(), Workspace::new());
-    let opts = SolverOptions::default();
-    let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
-    let far = shrunk(&ls.theta(), nb, 0.1, 0.3);
+    let case = Oe1010::new();
+    let prob = case.prob();
+    let (judge, opts, mut ws) = (Judge::default(), SolverOptions::default(), Workspace::new());
+    let (ls, far) = case.ls_and_far(0.1, 0.3, &mut ws);
     let pair = estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts };
     let mut chains = estimate::Chains::new(&ls.theta(), std::slice::from_ref(&far));
     // The far chain's own fits, as the steps run them, to see when one converged on the budget.
@@ -472,12 +488,10 @@ fn the_top_cell_is_no_worse_than_its_fit_from_theta_ls() {
 /// tolerance just under the cap would otherwise pay that at every cell.
 #[test]
 fn a_slow_losing_chain_runs_on_the_creeping_budget_too() {
-    let (u, y, nb, nf) = oe1010_record();
-    let prob = Problem { u: &u, y: &y, nb, nf, delay: 1, offset: false };
-    let (judge, mut ws) = (Judge::default(), Workspace::new());
-    let opts = SolverOptions::default();
-    let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
-    let far = shrunk(&ls.theta(), nb, 0.2, 0.6);
+    let case = Oe1010::new();
+    let prob = case.prob();
+    let (judge, opts, mut ws) = (Judge::default(), SolverOptions::default(), Workspace::new());
+    let (ls, far) = case.ls_and_far(0.2, 0.6, &mut ws);
     let pair = estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts };
     // The far chain's own first fit, as the step runs it (cold settings).
     let alone = solver::minimise(&prob, Loss::Huber { gamma: 3.0 * ls.sigma }, &far, &opts.huber(), &mut ws);

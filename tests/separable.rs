@@ -179,17 +179,21 @@ fn a_job_selects_the_separable_solver() {
     assert_eq!((&sel["m2"]["nb"], &sel["m2"]["nf"]), (&serde_json::json!(2), &serde_json::json!(2)));
 }
 
+/// Settings that explore on the whole 40 000-sample record of the two tests below, and on
+/// its first 4096 samples.
+fn whole_and_head() -> [SolverOptions; 2] {
+    [0, 4096].map(|explore_rows| SolverOptions { explore_rows, ..SolverOptions::default() })
+}
+
 /// A record longer than `solver.explore_rows` explores its least-squares starts on its head and
-/// minimises the best few on the whole record: on a long record with spikes it reaches the
+/// minimises the best on the whole record: on a long record with spikes it reaches the
 /// minima of the whole-record exploration (least squares and the Huber cells from its starts).
 #[test]
 fn exploring_the_starts_on_the_head_reaches_the_whole_record_minima() {
     let (u, y) = spiky(40_000, 1.0);
     let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true };
-    let judge = Judge::default();
-    let mut ws = Workspace::new();
-    let whole = SolverOptions { explore_rows: 0, ..SolverOptions::default() };
-    let head = SolverOptions { explore_rows: 4096, ..SolverOptions::default() };
+    let (judge, mut ws) = (Judge::default(), Workspace::new());
+    let [whole, head] = whole_and_head();
     let a = estimate::fit_ls(&prob, &judge, &whole, &mut ws);
     let b = estimate::fit_ls(&prob, &judge, &head, &mut ws);
     assert!((a.criterion - b.criterion).abs() <= 1e-8 * a.criterion, "{} vs {}", a.criterion, b.criterion);
@@ -212,10 +216,8 @@ fn exploring_the_starts_on_the_head_reaches_the_whole_record_minima() {
 fn walking_the_chains_on_the_head_reaches_the_whole_record_cells() {
     let (u, y) = spiky(40_000, 1.0);
     let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true };
-    let judge = Judge::default();
-    let mut ws = Workspace::new();
-    let whole = SolverOptions { explore_rows: 0, ..SolverOptions::default() };
-    let head = SolverOptions { explore_rows: 4096, ..SolverOptions::default() };
+    let (judge, mut ws) = (Judge::default(), Workspace::new());
+    let [whole, head] = whole_and_head();
     let ls = estimate::fit_ls(&prob, &judge, &whole, &mut ws);
     let ks: Vec<(usize, f64)> = (0..10).map(|i| (i, 0.05 * 40f64.powf(i as f64 / 9.0))).collect();
     let done = vec![false; ks.len()];

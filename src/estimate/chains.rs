@@ -6,8 +6,7 @@
 
 use super::huber::Loss;
 use super::solver::{self, Problem, Solution, SolverOptions, Termination, Workspace};
-use super::{HuberFit, Judge, StartKind, huber_from_solution};
-
+use super::{HuberFit, Judge, StartKind, exploration_head, huber_from_solution};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::Instant;
 
@@ -250,11 +249,12 @@ pub enum CellOutcome {
 
 /// The whole Huber phase of one pair: its cells at `ks` (k index, k), in increasing k, chains
 /// from `theta_ls` and `alternatives`. On a record longer than `solver.explore_rows` the walk
-/// (chains and backward pass) runs on the record's first `explore_rows` samples, and each cell
-/// is then one warm fit on the whole record from the head's solution (METHOD.md 5.5): the
-/// losing chains and the backward pass cost a head's worth per iteration. On a 131 072-sample
-/// record (`benches/long_record.sh`) every one of the 640 cells came out within 1e-6 of the
-/// whole-record walk, the same picks, for 11.8 -> 9.8 s of Huber time. The chains carry state from cell to cell that the rows
+/// (chains and backward pass) runs on the record's first `explore_rows` samples
+/// ([`exploration_head`]), and each cell is then one warm fit on the whole record from the
+/// head's solution (METHOD.md 5.5): the losing chains and the backward pass cost a head's
+/// worth per iteration. On a 131 072-sample record (`benches/long_record.sh`) every one of the
+/// 640 cells came out within 1e-6 of the whole-record walk, the same picks, for 11.8 -> 9.8 s
+/// of Huber time. The chains carry state from cell to cell that the rows
 /// do not hold, so a pair with unfinished cells is walked again from its first cell: the walk
 /// is deterministic, so the cells an earlier run finished (`done[i]`) come out bit for bit the
 /// same, and only the others are returned (with their k index). Each cell is guarded on its
@@ -274,12 +274,11 @@ pub fn walk_pair(
     // A long record walks on its head (`solver.explore_rows`), judged by nothing but its own
     // criterion, and each cell is then minimised on the whole record from there.
     let whole = pair;
-    let head_rows = pair.opts.explore_rows.min(pair.prob.n());
-    let on_head = head_rows > 0 && head_rows < pair.prob.n();
-    let head = Problem { u: &pair.prob.u[..head_rows], y: &pair.prob.y[..head_rows], ..*pair.prob };
+    let head = exploration_head(pair.prob, pair.opts);
+    let on_head = head.is_some();
     let head_judge = Judge::default();
-    let head_pair = PairProblem { prob: &head, judge: &head_judge, ..*pair };
-    let pair = if on_head { &head_pair } else { pair };
+    let head_pair = head.as_ref().map(|prob| PairProblem { prob, judge: &head_judge, ..*pair });
+    let pair = head_pair.as_ref().unwrap_or(pair);
     let mut chains = Chains::new(theta_ls, alternatives);
     let mut walk = ChainWalk::default();
     let mut seconds = Vec::with_capacity(ks.len());

@@ -231,15 +231,14 @@ pub fn fit_ls_nested(
     // runners-up are Huber starts as the head left them (the chains walk on the head anyway).
     // Minimising them too on the whole record never changed theta_LS or a cell (two
     // 131 072-sample records: all 704 criteria the same to 1e-6) and cost 11-14 % of the run.
-    let (sols, head_others) = match opts.explore_rows {
-        p if p > 0 && prob.n() > p => {
-            let head = Problem { u: &prob.u[..p], y: &prob.y[..p], ..*prob };
+    let (sols, head_others) = match exploration_head(prob, opts) {
+        Some(head) => {
             let found = ls_minima(&head, opts, nested, ws);
             let (best, others) = ranked(&found);
             let others: Vec<Vec<f64>> = others.iter().map(|s| s.theta.clone()).collect();
             (vec![solver::minimise(prob, Loss::LeastSquares, &best.theta, opts, ws)], Some(others))
         }
-        _ => (ls_minima(prob, opts, nested, ws), None),
+        None => (ls_minima(prob, opts, nested, ws), None),
     };
     let (best, others) = ranked(&sols);
     let others = head_others.unwrap_or_else(|| others.iter().map(|s| s.theta.clone()).collect());
@@ -259,6 +258,13 @@ pub fn fit_ls_nested(
     let mut fit = ls_from_solution(prob, best.clone(), judge, opts, ws);
     fit.alternatives = alternatives;
     fit
+}
+
+/// The first `solver.explore_rows` samples of a record longer than that, where the starts are
+/// explored (METHOD.md 5.2 step 5, 5.5); None when the whole record is explored.
+pub fn exploration_head<'a>(prob: &Problem<'a>, opts: &SolverOptions) -> Option<Problem<'a>> {
+    let rows = opts.explore_rows;
+    (rows > 0 && prob.n() > rows).then(|| Problem { u: &prob.u[..rows], y: &prob.y[..rows], ..*prob })
 }
 
 /// The lowest usable solution (ties: the first) and the others that are usable and distinct
