@@ -345,9 +345,9 @@ fn write_results(out: &Path, job: &job::Job, rows: &[CellRow], notes: &Notes) ->
     selection.warnings = notes.warnings.clone();
     // A report of the previous table would describe models this table may not have.
     crate::report::remove_report(out);
-    export::parquet::write_cells(&out.join("cells.parquet"), rows)?;
-    export::json::write_json(&out.join("selection.json"), &selection)?;
-    export::json::write_json(&out.join("job.json"), &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job })?;
+    export::parquet::write_cells(&out.join(export::CELLS_FILE), rows)?;
+    export::json::write_json(&out.join(export::SELECTION_FILE), &selection)?;
+    export::json::write_json(&out.join(export::JOB_FILE), &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job })?;
     Ok(selection)
 }
 
@@ -427,7 +427,7 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
         cleanup: None,
         report: None,
     };
-    let merged = ["cells.parquet", "selection.json", "job.json"].iter().all(|f| out.join(f).is_file());
+    let merged = export::RESULT_FILES.iter().all(|f| out.join(f).is_file());
     if !merged || out.join(checkpoint::PARTS_DIR).exists() {
         let g = checkpoint::gather(out)?;
         result.name = g.job.name.clone();
@@ -459,7 +459,7 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
     if report {
         result.report = Some(crate::report::write_report(out));
     }
-    result.failed = failed_cells(&export::parquet::read_cells(&out.join("cells.parquet"))?);
+    result.failed = failed_cells(&export::parquet::read_cells(&out.join(export::CELLS_FILE))?);
     Ok(result)
 }
 

@@ -100,7 +100,7 @@ pub fn open(out: &Path, shard: Option<Shard>, manifest: &Manifest, job: &Job, fo
     remove_temporaries(&dir, &[]);
     if shard.is_none() {
         // A shard must not: a merge may be writing them (or another shard's run may).
-        remove_temporaries(out, &["cells.parquet", "selection.json", "job.json"]);
+        remove_temporaries(out, &crate::export::RESULT_FILES);
     }
     let path = dir.join(MANIFEST);
     if !path.exists() {

@@ -82,7 +82,7 @@ pub const PARTS_DIR: &str = "parts";
 pub const MANIFEST: &str = "manifest.json";
 /// The normalised job (paths included) inside a checkpoint folder: what `oesweep merge`
 /// needs to rebuild the plan and write `job.json` without the job file.
-pub const JOB_FILE: &str = "job.json";
+pub use crate::export::JOB_FILE;
 /// A part is written at the latest when this many rows are waiting.
 pub const BATCH_ROWS: usize = 500;
 /// A part is written at the latest this many seconds after its first row finished.

@@ -9,6 +9,17 @@
 pub mod json;
 pub mod parquet;
 
+/// The result table of a finished run (or merge).
+pub const CELLS_FILE: &str = "cells.parquet";
+/// The picks and what the run says about the data ([`crate::reduce::Selection`]).
+pub const SELECTION_FILE: &str = "selection.json";
+/// The normalised job as run (also the name of the job file kept in a checkpoint folder).
+pub const JOB_FILE: &str = "job.json";
+/// The files a finished run leaves in its output folder.
+pub const RESULT_FILES: [&str; 3] = [CELLS_FILE, SELECTION_FILE, JOB_FILE];
+/// The review page ([`crate::report`]).
+pub const REPORT_FILE: &str = "report.html";
+
 use crate::error::{Error, Result};
 use std::ffi::OsString;
 use std::fs::File;

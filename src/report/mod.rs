@@ -70,7 +70,7 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 /// Files a finished sweep leaves in its folder.
-const REQUIRED: [&str; 3] = ["cells.parquet", "selection.json", "job.json"];
+const REQUIRED: [&str; 3] = crate::export::RESULT_FILES;
 /// Prefix of the figure files, so a new report can remove the figures of an old one.
 const FIGURE_PREFIX: &str = "report-";
 /// Samples shown in the simulated-output figures: a readable window of the record.
@@ -182,9 +182,9 @@ impl Sweep {
                 ),
             ));
         }
-        let rows = read_cells(&folder.join("cells.parquet"))?;
-        let selection: Selection = read_json(&folder.join("selection.json"))?;
-        let job_path = folder.join("job.json");
+        let rows = read_cells(&folder.join(crate::export::CELLS_FILE))?;
+        let selection: Selection = read_json(&folder.join(crate::export::SELECTION_FILE))?;
+        let job_path = folder.join(crate::export::JOB_FILE);
         let mut job: JobInfo = read_json(&job_path)?;
         let ts = job
             .data
@@ -265,7 +265,7 @@ pub fn write_report(folder: &Path) -> Result<PathBuf> {
     remove_stale_figures(folder, &written);
 
     let page = html::page(&header(&sweep), &sections);
-    let path = folder.join("report.html");
+    let path = folder.join(crate::export::REPORT_FILE);
     write_atomically(&path, |f| std::io::Write::write_all(f, page.as_bytes()).map_err(|e| e.to_string()))?;
     Ok(path)
 }
@@ -273,7 +273,7 @@ pub fn write_report(folder: &Path) -> Result<PathBuf> {
 /// Remove the report of an earlier table (`report.html` and every `report-*.svg`), when new
 /// results replace that table. Best effort, like [`remove_stale_figures`].
 pub fn remove_report(folder: &Path) {
-    let _ = std::fs::remove_file(folder.join("report.html"));
+    let _ = std::fs::remove_file(folder.join(crate::export::REPORT_FILE));
     remove_stale_figures(folder, &BTreeSet::new());
 }
 
