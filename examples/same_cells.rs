@@ -15,7 +15,7 @@ fn main() -> ExitCode {
     };
     let read = |p: &str| match read_cells(Path::new(p)) {
         Ok(mut rows) => {
-            rows.iter_mut().for_each(|r| r.seconds = 0.0);
+            rows.iter_mut().for_each(|r| r.fit.seconds = 0.0);
             Some(rows)
         }
         Err(e) => {

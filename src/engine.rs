@@ -24,7 +24,7 @@ use crate::shard::{self, Missing, Shard};
 use crate::simulate;
 use crate::spectral::{self, SpectralEstimate};
 use crate::sweep::{self, Context};
-use crate::table::{CellRow, Method};
+use crate::table::CellRow;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -266,7 +266,7 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
         shard: opts.shard,
         cells,
         pairs,
-        finished: outcome.rows.iter().filter(|r| r.method == Method::Huber).count(),
+        finished: crate::table::huber_rows(&outcome.rows),
         computed: outcome.computed,
         resumed: outcome.resumed,
         resumed_rows,
@@ -347,13 +347,11 @@ fn write_results(out: &Path, job: &job::Job, rows: &[CellRow], notes: &Notes) ->
     crate::report::remove_report(out);
     export::parquet::write_cells(&out.join(export::CELLS_FILE), rows)?;
     export::json::write_json(&out.join(export::SELECTION_FILE), &selection)?;
-    export::json::write_json(&out.join(export::JOB_FILE), &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job })?;
+    export::json::write_json(
+        &out.join(export::JOB_FILE),
+        &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job },
+    )?;
     Ok(selection)
-}
-
-/// Failed Huber cells of a table.
-pub fn failed_cells(rows: &[CellRow]) -> usize {
-    rows.iter().filter(|r| r.method == Method::Huber && !r.ok()).count()
 }
 
 /// How [`merge`] ended.
@@ -449,7 +447,7 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
             return Ok(result);
         }
         let selection = write_results(out, &g.job, &g.rows, &Notes::of_job(&g.job))?;
-        result.huber = g.rows.iter().filter(|r| r.method == Method::Huber).count();
+        result.huber = crate::table::huber_rows(&g.rows);
         result.ls = g.rows.len() - result.huber;
         if result.missing.is_empty() {
             result.cleanup = checkpoint::remove(out).err();
@@ -459,7 +457,7 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
     if report {
         result.report = Some(crate::report::write_report(out));
     }
-    result.failed = failed_cells(&export::parquet::read_cells(&out.join(export::CELLS_FILE))?);
+    result.failed = crate::table::failed_cells(&export::parquet::read_cells(&out.join(export::CELLS_FILE))?);
     Ok(result)
 }
 

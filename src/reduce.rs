@@ -41,7 +41,8 @@
 //!
 //! Defaults: `min_tolerance = 1e-3`, `fit_tolerance = 0.05` points.
 
-use crate::table::{CellRow, Method};
+use crate::table::columns::RowJson;
+use crate::table::{CellRow, FitKind, RowKey, Status};
 use serde::{Deserialize, Serialize};
 use std::cmp::Ordering;
 use std::collections::BTreeMap;
@@ -67,9 +68,9 @@ impl FitBasis {
     /// The row's fit in this basis, if it has one.
     pub fn score(self, row: &CellRow) -> Option<f64> {
         match self {
-            FitBasis::Validation => row.fit_val,
-            FitBasis::Band => row.fit_band,
-            FitBasis::Estimation => row.fit,
+            FitBasis::Validation => row.fit.fit_val,
+            FitBasis::Band => row.fit.fit_band,
+            FitBasis::Estimation => row.fit.fit,
         }
     }
 
@@ -109,77 +110,79 @@ impl ReduceOptions {
     }
 }
 
-/// A local minimum of a W or L1C curve, with the row's numbers and its score.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+/// A local minimum of a W or L1C curve: its table row and its score.
+///
+/// In `selection.json` a candidate is the row's reproducible columns (all but the wall time,
+/// [`crate::table::columns::RowJson`]) with `score` after `fit_band`; read back, the wall time
+/// is 0.
+#[derive(Clone, Debug)]
 pub struct Candidate {
-    pub nb: u32,
-    pub nf: u32,
-    pub delay: u32,
-    pub k_index: u32,
-    pub k: f64,
-    pub gamma: f64,
-    /// W, the Huber criterion.
-    pub criterion: f64,
-    /// L1C, the share of residuals beyond gamma.
-    pub l1c: f64,
-    pub fit: Option<f64>,
-    pub fit_val: Option<f64>,
-    pub fit_band: Option<f64>,
+    pub row: CellRow,
     /// The fit that ranks candidates (the basis column).
     pub score: f64,
-    pub b: Vec<f64>,
-    pub f: Vec<f64>,
-    /// The model's output offset (the table's `offset`).
-    #[serde(default)]
-    pub offset: Option<f64>,
-    /// The evidence of the table's row ([`crate::estimate::evidence`]): parameter standard
-    /// deviations, the largest relative one, and the residual tests' p-values.
-    #[serde(default)]
-    pub b_std: Vec<f64>,
-    #[serde(default)]
-    pub f_std: Vec<f64>,
-    #[serde(default)]
-    pub offset_std: Option<f64>,
-    #[serde(default)]
-    pub max_rel_std: Option<f64>,
-    #[serde(default)]
-    pub resid_white_p: Option<f64>,
-    #[serde(default)]
-    pub resid_indep_p: Option<f64>,
+}
+
+impl std::ops::Deref for Candidate {
+    type Target = CellRow;
+    fn deref(&self) -> &CellRow {
+        &self.row
+    }
+}
+
+/// Equal as `selection.json` shows them: the wall time is not part of a candidate.
+impl PartialEq for Candidate {
+    fn eq(&self, other: &Self) -> bool {
+        self.score == other.score
+            && crate::table::COLUMNS
+                .iter()
+                .filter(|c| c.reproducible)
+                .all(|c| (c.get)(&self.row) == (c.get)(&other.row))
+    }
+}
+
+impl Serialize for Candidate {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        RowJson { row: &self.row, extra: &[("score", self.score)], after: "fit_band" }.serialize(s)
+    }
+}
+
+impl<'de> Deserialize<'de> for Candidate {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        let obj = serde_json::Map::<String, serde_json::Value>::deserialize(d)?;
+        let score =
+            obj.get("score").and_then(serde_json::Value::as_f64).ok_or_else(|| D::Error::missing_field("score"))?;
+        // Files of older versions hold only some columns; a candidate is an ok Huber row (rule 1).
+        let key = RowKey { kind: FitKind::Huber, delay: 0, nb: 0, nf: 0, k_index: None };
+        let base = CellRow { status: Status::Ok, ..CellRow::empty(key) };
+        let row = crate::table::columns::row_from_json(&obj, base).map_err(D::Error::custom)?;
+        Ok(Candidate { row, score })
+    }
 }
 
 impl Candidate {
     /// The row as a candidate, if it takes part in the choice (rule 1).
     fn new(row: &CellRow, score: f64) -> Option<Self> {
-        let finite = |v: Option<f64>| v.filter(|v| v.is_finite());
-        Some(Candidate {
-            nb: row.nb,
-            nf: row.nf,
-            delay: row.delay,
-            k_index: row.k_index?,
-            k: finite(row.k)?,
-            gamma: finite(row.gamma)?,
-            criterion: finite(row.criterion)?,
-            l1c: finite(row.l1c)?,
-            fit: row.fit,
-            fit_val: row.fit_val,
-            fit_band: row.fit_band,
-            score,
-            b: row.b.clone(),
-            f: row.f.clone(),
-            offset: row.offset,
-            b_std: row.b_std.clone(),
-            f_std: row.f_std.clone(),
-            offset_std: row.offset_std,
-            max_rel_std: row.max_rel_std,
-            resid_white_p: row.resid_white_p,
-            resid_indep_p: row.resid_indep_p,
-        })
+        takes_part(row).then(|| Candidate { row: row.clone(), score })
     }
 
-    /// Number of estimated parameters, nB + nF.
-    pub fn parameters(&self) -> u32 {
-        self.nb + self.nf
+    /// The candidate's k index (every candidate has one, rule 1).
+    pub fn k_index(&self) -> u32 {
+        self.key.k_index.unwrap_or(u32::MAX)
+    }
+
+    /// The candidate's k, gamma, W and L1C (finite for every candidate, rule 1).
+    pub fn k(&self) -> f64 {
+        self.row.k.unwrap_or(f64::NAN)
+    }
+    pub fn gamma(&self) -> f64 {
+        self.fit.gamma.unwrap_or(f64::NAN)
+    }
+    pub fn criterion(&self) -> f64 {
+        self.fit.criterion.unwrap_or(f64::NAN)
+    }
+    pub fn l1c(&self) -> f64 {
+        self.fit.l1c.unwrap_or(f64::NAN)
     }
 }
 
@@ -187,10 +190,10 @@ impl Candidate {
 fn tie_break(a: &Candidate, b: &Candidate) -> Ordering {
     a.parameters()
         .cmp(&b.parameters())
-        .then(a.nf.cmp(&b.nf))
+        .then(a.key.nf.cmp(&b.key.nf))
         .then(b.score.total_cmp(&a.score))
-        .then(a.k_index.cmp(&b.k_index))
-        .then(a.delay.cmp(&b.delay))
+        .then(a.k_index().cmp(&b.k_index()))
+        .then(a.key.delay.cmp(&b.key.delay))
 }
 
 /// Listing order: score descending, then the tie-break (rule 7).
@@ -288,8 +291,8 @@ impl Curve {
     /// The curve's value at a row that takes part ([`takes_part`]; finite there).
     pub fn value(self, r: &CellRow) -> f64 {
         match self {
-            Curve::W => r.criterion.unwrap_or(f64::NAN),
-            Curve::L1c => r.l1c.unwrap_or(f64::NAN),
+            Curve::W => r.fit.criterion.unwrap_or(f64::NAN),
+            Curve::L1c => r.fit.l1c.unwrap_or(f64::NAN),
         }
     }
 
@@ -311,21 +314,20 @@ pub type CurveKey = (u32, u32, Option<u32>);
 pub fn curves(rows: &[CellRow]) -> BTreeMap<CurveKey, Vec<&CellRow>> {
     let mut curves: BTreeMap<CurveKey, Vec<&CellRow>> = BTreeMap::new();
     for r in rows.iter().filter(|r| takes_part(r)) {
-        curves.entry((r.delay, r.nb, r.k_index)).or_default().push(r);
+        curves.entry((r.key.delay, r.key.nb, r.key.k_index)).or_default().push(r);
     }
     for curve in curves.values_mut() {
         // Sort by nF, duplicates by criterion, so dedup keeps the better fit of a repeated cell.
-        curve.sort_by(|a, b| a.nf.cmp(&b.nf).then(Curve::W.value(a).total_cmp(&Curve::W.value(b))));
-        curve.dedup_by_key(|r| r.nf);
+        curve.sort_by(|a, b| a.key.nf.cmp(&b.key.nf).then(Curve::W.value(a).total_cmp(&Curve::W.value(b))));
+        curve.dedup_by_key(|r| r.key.nf);
     }
     curves
 }
 
 /// Apply rules 1-7 to a result table.
 pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
-    let huber = || rows.iter().filter(|r| r.method == Method::Huber);
-    let cells = huber().count();
-    let failed = huber().filter(|r| r.status == crate::table::STATUS_FAILED).count();
+    let cells = crate::table::huber_rows(rows);
+    let failed = crate::table::failed_cells(rows);
 
     let mut w_minima = Vec::new();
     let mut l1c_minima = Vec::new();
@@ -354,13 +356,13 @@ pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
 /// Rule 1: does a row take part in the choice?
 pub fn takes_part(r: &CellRow) -> bool {
     let finite = |v: Option<f64>| v.is_some_and(f64::is_finite);
-    r.method == Method::Huber
+    r.is_huber()
         && r.ok()
-        && r.k_index.is_some()
-        && finite(r.criterion)
-        && finite(r.l1c)
+        && r.key.k_index.is_some()
+        && finite(r.fit.criterion)
+        && finite(r.fit.l1c)
         && finite(r.k)
-        && finite(r.gamma)
+        && finite(r.fit.gamma)
 }
 
 /// Rules 5-7 on the local minima of one kind of curve.
@@ -397,10 +399,10 @@ fn pick(minima: &[&CellRow], opts: &ReduceOptions, curve: Curve) -> Option<Pick>
         "OE({},{}) at k = {} (k index {}) with {basis} {:.3}%: chosen among {} local {} over nF of {curve_name} \
          (one curve per nB and k, {tolerance}){skipped}; the best {basis} is {best:.3}%, ties are \
          within {} points of it; this model is {how}",
-        model.nb,
-        model.nf,
-        model.k,
-        model.k_index,
+        model.key.nb,
+        model.key.nf,
+        model.k(),
+        model.k_index(),
         model.score,
         candidates.len(),
         if candidates.len() == 1 { "minimum" } else { "minima" },
@@ -412,23 +414,26 @@ fn pick(minima: &[&CellRow], opts: &ReduceOptions, curve: Curve) -> Option<Pick>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::table::STATUS_OK;
+    use crate::table::Status;
+
+    fn key(kind: FitKind, nb: u32, nf: u32, k_index: Option<u32>) -> RowKey {
+        RowKey { kind, delay: 1, nb, nf, k_index }
+    }
 
     /// An ok Huber row; `fit` is used for all three fit columns unless changed.
     fn row(nb: u32, nf: u32, k_index: u32, criterion: f64, l1c: f64, fit: f64) -> CellRow {
-        let mut r =
-            CellRow::failed(Method::Huber, nb as usize, nf as usize, 1, Some((k_index as usize, 0.05)), "".into());
-        r.status = STATUS_OK.to_string();
+        let mut r = CellRow::failed(key(FitKind::Huber, nb, nf, Some(k_index)), Some(0.05), "".into());
+        r.status = Status::Ok;
         r.reason = None;
-        r.sigma = Some(2.0);
-        r.gamma = Some(0.1);
-        r.criterion = Some(criterion);
-        r.l1c = Some(l1c);
-        r.fit = Some(fit);
-        r.fit_val = Some(fit);
-        r.fit_band = Some(fit);
-        r.b = vec![1.0; nb as usize];
-        r.f = vec![0.1; nf as usize];
+        r.fit.sigma = Some(2.0);
+        r.fit.gamma = Some(0.1);
+        r.fit.criterion = Some(criterion);
+        r.fit.l1c = Some(l1c);
+        r.fit.fit = Some(fit);
+        r.fit.fit_val = Some(fit);
+        r.fit.fit_band = Some(fit);
+        r.fit.b = vec![1.0; nb as usize];
+        r.fit.f = vec![0.1; nf as usize];
         r
     }
 
@@ -439,7 +444,7 @@ mod tests {
 
     fn minima_nf(rows: &[CellRow]) -> Vec<u32> {
         let sel = select(rows, &ReduceOptions::new(FitBasis::Validation));
-        let mut nf: Vec<u32> = sel.m1.map(|p| p.candidates.iter().map(|c| c.nf).collect()).unwrap_or_default();
+        let mut nf: Vec<u32> = sel.m1.map(|p| p.candidates.iter().map(|c| c.key.nf).collect()).unwrap_or_default();
         nf.sort();
         nf
     }
@@ -465,9 +470,9 @@ mod tests {
         assert_eq!(minima_nf(&w_curve(3, 0, &[5.0, 4.0, 3.0, 4.0, 5.0])), vec![4]);
         let sel = select(&w_curve(3, 0, &[5.0, 4.0, 3.0, 4.0, 5.0]), &ReduceOptions::new(FitBasis::Validation));
         let m1 = sel.m1.unwrap();
-        assert_eq!((m1.model.nb, m1.model.nf, m1.model.k_index), (3, 4, 0));
+        assert_eq!((m1.model.key.nb, m1.model.key.nf, m1.model.k_index()), (3, 4, 0));
         assert_eq!(m1.model.score, 92.0);
-        assert_eq!(m1.model.b.len(), 3);
+        assert_eq!(m1.model.fit.b.len(), 3);
         assert!(m1.rule.contains("OE(3,4)") && m1.rule.contains("criterion W"), "{}", m1.rule);
     }
 
@@ -483,21 +488,21 @@ mod tests {
     fn reduce_failed_and_unusable_rows_ignored() {
         // nf = 3 failed: nf = 4 (W = 4) has neighbours nf = 2 (W = 5) and nf = 5 (W = 6).
         let mut rows = vec![row(3, 2, 0, 5.0, 0.5, 90.0), row(3, 4, 0, 4.0, 0.5, 91.0), row(3, 5, 0, 6.0, 0.5, 92.0)];
-        rows.push(CellRow::failed(Method::Huber, 3, 3, 1, Some((0, 0.05)), "diverged".into()));
+        rows.push(CellRow::failed(key(FitKind::Huber, 3, 3, Some(0)), Some(0.05), "diverged".into()));
         // An ok row without a finite criterion does not take part either.
         let mut nan = row(3, 6, 0, 1.0, 0.5, 99.0);
-        nan.criterion = Some(f64::NAN);
+        nan.fit.criterion = Some(f64::NAN);
         rows.push(nan);
         // Nor a malformed ok row without gamma.
         let mut no_gamma = row(3, 3, 0, 0.5, 0.5, 99.0);
-        no_gamma.gamma = None;
+        no_gamma.fit.gamma = None;
         rows.push(no_gamma);
         // Nor does a least-squares row, however small its criterion.
         let mut ls = row(3, 3, 0, 0.1, 0.5, 99.0);
-        ls.method = Method::Ls;
-        ls.k_index = None;
+        ls.key.kind = FitKind::Ls;
+        ls.key.k_index = None;
         rows.push(ls);
-        rows.push(CellRow::failed(Method::Ls, 3, 7, 1, None, "ls failed".into()));
+        rows.push(CellRow::failed(key(FitKind::Ls, 3, 7, None), None, "ls failed".into()));
         assert_eq!(minima_nf(&rows), vec![4]);
         let sel = select(&rows, &ReduceOptions::new(FitBasis::Validation));
         assert_eq!((sel.cells, sel.failed), (6, 1));
@@ -510,13 +515,13 @@ mod tests {
         rows.extend([row(2, 3, 0, 2.0, 0.5, 80.0), row(2, 4, 0, 1.0, 0.5, 89.97), row(2, 5, 0, 2.0, 0.5, 96.0)]);
         let opts = ReduceOptions::new(FitBasis::Validation);
         let m1 = select(&rows, &opts).m1.unwrap();
-        assert_eq!((m1.model.nb, m1.model.nf), (2, 4));
+        assert_eq!((m1.model.key.nb, m1.model.key.nf), (2, 4));
         // The listing stays best-first.
-        assert_eq!(m1.candidates.iter().map(|c| (c.nb, c.nf)).collect::<Vec<_>>(), vec![(3, 5), (2, 4)]);
+        assert_eq!(m1.candidates.iter().map(|c| (c.key.nb, c.key.nf)).collect::<Vec<_>>(), vec![(3, 5), (2, 4)]);
         assert!(m1.rule.contains("fewest parameters"), "{}", m1.rule);
         // Outside the margin the best fit wins.
         let m1 = select(&rows, &ReduceOptions { fit_tolerance: 0.01, ..opts }).m1.unwrap();
-        assert_eq!((m1.model.nb, m1.model.nf), (3, 5));
+        assert_eq!((m1.model.key.nb, m1.model.key.nf), (3, 5));
         assert!(m1.rule.contains("the only one"), "{}", m1.rule);
     }
 
@@ -524,12 +529,12 @@ mod tests {
     fn reduce_equal_parameters_then_nf_then_score_then_k_index() {
         // OE(3,4) and OE(4,3) tie on parameters: smaller nf wins.
         let rows = vec![row(3, 4, 0, 1.0, 0.5, 90.0), row(4, 3, 0, 1.0, 0.5, 90.02)];
-        assert_eq!(select(&rows, &ReduceOptions::new(FitBasis::Validation)).m1.unwrap().model.nb, 4);
+        assert_eq!(select(&rows, &ReduceOptions::new(FitBasis::Validation)).m1.unwrap().model.key.nb, 4);
         // Same orders at two k: the higher score, and on an exact tie the smaller k index.
         let rows = vec![row(3, 4, 2, 1.0, 0.5, 90.0), row(3, 4, 1, 1.0, 0.5, 90.03)];
-        assert_eq!(select(&rows, &ReduceOptions::new(FitBasis::Validation)).m1.unwrap().model.k_index, 1);
+        assert_eq!(select(&rows, &ReduceOptions::new(FitBasis::Validation)).m1.unwrap().model.k_index(), 1);
         let rows = vec![row(3, 4, 2, 1.0, 0.5, 90.0), row(3, 4, 1, 1.0, 0.5, 90.0)];
-        assert_eq!(select(&rows, &ReduceOptions::new(FitBasis::Validation)).m1.unwrap().model.k_index, 1);
+        assert_eq!(select(&rows, &ReduceOptions::new(FitBasis::Validation)).m1.unwrap().model.k_index(), 1);
     }
 
     #[test]
@@ -553,17 +558,17 @@ mod tests {
 
         // Two single-point curves; the band fit prefers nb = 2, the estimation fit nb = 3.
         let mut a = row(3, 4, 0, 1.0, 0.5, 95.0);
-        a.fit_band = Some(80.0);
-        a.fit_val = None;
+        a.fit.fit_band = Some(80.0);
+        a.fit.fit_val = None;
         let mut b = row(2, 4, 0, 1.0, 0.5, 90.0);
-        b.fit_band = Some(85.0);
-        b.fit_val = None;
+        b.fit.fit_band = Some(85.0);
+        b.fit.fit_val = None;
         let rows = vec![a, b];
         let band = select(&rows, &ReduceOptions::new(FitBasis::Band)).m1.unwrap();
-        assert_eq!((band.model.nb, band.model.score), (2, 85.0));
+        assert_eq!((band.model.key.nb, band.model.score), (2, 85.0));
         assert!(band.rule.contains("band fit"), "{}", band.rule);
         let est = select(&rows, &ReduceOptions::new(FitBasis::Estimation)).m1.unwrap();
-        assert_eq!((est.model.nb, est.model.score), (3, 95.0));
+        assert_eq!((est.model.key.nb, est.model.score), (3, 95.0));
         // No row has a validation fit: no pick, not a panic.
         let val = select(&rows, &ReduceOptions::new(FitBasis::Validation));
         assert!(val.m1.is_none() && val.m2.is_none());
@@ -582,11 +587,11 @@ mod tests {
         ];
         let sel = select(&rows, &ReduceOptions::new(FitBasis::Validation));
         let m1 = sel.m1.unwrap();
-        assert_eq!(m1.model.nf, 5);
+        assert_eq!(m1.model.key.nf, 5);
         let m2 = sel.m2.unwrap();
-        assert_eq!(m2.candidates.iter().map(|c| c.nf).collect::<Vec<_>>(), vec![4, 3]);
+        assert_eq!(m2.candidates.iter().map(|c| c.key.nf).collect::<Vec<_>>(), vec![4, 3]);
         // 92 vs 91 is outside the 0.05 margin: the better fit wins.
-        assert_eq!((m2.model.nf, m2.model.l1c), (4, 0.3005));
+        assert_eq!((m2.model.key.nf, m2.model.l1c()), (4, 0.3005));
         assert!(m2.rule.contains("L1C") && m2.rule.contains("absolute tolerance"), "{}", m2.rule);
     }
 
@@ -605,6 +610,14 @@ mod tests {
         // The model's fields are flattened into the pick next to `rule` and `candidates`.
         assert_eq!(v["m1"]["nf"], 3);
         assert_eq!(v["m1"]["score"], 91.0);
+        // A candidate is its row without the wall time, the score after `fit_band`.
+        assert!(v["m1"].get("seconds").is_none() && v["m1"]["method"] == "huber");
+        let text = serde_json::to_string(&sel.m1.as_ref().unwrap().model).unwrap();
+        assert!(
+            text.contains(r#""fit_band":92.0,"score":91.0,"iterations""#)
+                || text.contains(r#""fit_band":91.0,"score":91.0,"iterations""#),
+            "{text}"
+        );
         assert!(v["m1"]["rule"].is_string());
         assert_eq!(v["m1"]["candidates"].as_array().unwrap().len(), 1);
         assert_eq!(v["fit_tolerance"], 0.05);

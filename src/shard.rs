@@ -181,13 +181,13 @@ pub fn ranges(v: &[usize]) -> String {
 
 /// What of `plan` is not in `rows` (rows of other plans are ignored).
 pub fn missing(plan: &Plan, rows: &[crate::table::CellRow]) -> Missing {
-    use crate::table::{RowKey, huber_key, ls_key};
+    use crate::table::RowKey;
     use std::collections::HashSet;
-    let have: HashSet<RowKey> = rows.iter().map(|r| r.key()).collect();
+    let have: HashSet<RowKey> = rows.iter().map(|r| r.key).collect();
     let mut m = Missing::default();
     for (p, pair) in plan.pairs.iter().enumerate() {
-        let ls = !have.contains(&ls_key(pair));
-        let ks: Vec<usize> = (0..plan.ks.len()).filter(|&k| !have.contains(&huber_key(pair, k))).collect();
+        let ls = !have.contains(&RowKey::ls(pair));
+        let ks: Vec<usize> = (0..plan.ks.len()).filter(|&k| !have.contains(&RowKey::huber(pair, k))).collect();
         if ls || !ks.is_empty() {
             m.cells += ks.len();
             m.ls += ls as usize;
@@ -253,11 +253,11 @@ mod tests {
 
     #[test]
     fn shard_missing_cells_are_listed_compactly() {
-        use crate::table::{CellRow, Method};
+        use crate::table::{CellRow, RowKey};
         let p = plan(1..=2, 1..=1, 10);
-        let mut rows = vec![CellRow::failed(Method::Ls, 1, 1, 1, None, "x".into())];
+        let mut rows = vec![CellRow::failed(RowKey::ls(&p.pairs[0]), None, "x".into())];
         for k in [0, 1, 2, 5, 7, 8] {
-            rows.push(CellRow::failed(Method::Huber, 1, 1, 1, Some((k, p.ks[k])), "x".into()));
+            rows.push(CellRow::failed(RowKey::huber(&p.pairs[0], k), Some(p.ks[k]), "x".into()));
         }
         let m = missing(&p, &rows);
         assert_eq!((m.cells, m.ls), (4 + 10, 1));

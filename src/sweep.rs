@@ -27,7 +27,7 @@ use crate::job::StartStrategy;
 use crate::plan::{Cell, Pair, Plan};
 use crate::progress::Progress;
 use crate::spectral::SpectralEstimate;
-use crate::table::{CellRow, Method, RowKey, huber_key, ls_key, sort_rows};
+use crate::table::{CellRow, RowKey, sort_rows};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -65,12 +65,12 @@ impl Context<'_> {
 
     /// The parameters a row holds, as the solver takes them.
     fn theta(&self, row: &CellRow) -> Vec<f64> {
-        estimate::theta_of(&row.b, &row.f, self.levels.estimated_c(row.offset))
+        estimate::theta_of(&row.fit.b, &row.fit.f, self.levels.estimated_c(row.fit.offset))
     }
 
     /// `row` with its `offset` in the data's units.
     fn with_offset(&self, mut row: CellRow) -> CellRow {
-        row.offset = self.levels.offset(row.offset);
+        row.fit.offset = self.levels.offset(row.fit.offset);
         row
     }
 }
@@ -113,7 +113,7 @@ pub struct Outcome {
 
 impl Outcome {
     pub fn failed_cells(&self) -> usize {
-        self.rows.iter().filter(|r| r.method == Method::Huber && !r.ok()).count()
+        crate::table::failed_cells(&self.rows)
     }
 }
 
@@ -124,11 +124,11 @@ pub fn run(plan: &Plan, ctx: &Context, threads: usize, progress: &Progress, cont
     let t0 = Instant::now();
     let mut done: HashMap<RowKey, CellRow> = HashMap::with_capacity(control.done.len());
     for row in control.done {
-        done.entry(row.key()).or_insert(row);
+        done.entry(row.key).or_insert(row);
     }
-    let resumed = done.values().filter(|r| r.method == Method::Huber).count();
+    let resumed = done.values().filter(|r| r.is_huber()).count();
     let new_rows = pool.install(|| run_in_pool(plan, ctx, progress, &done, control.on_row, control.stop));
-    let computed = new_rows.iter().filter(|r| r.method == Method::Huber).count();
+    let computed = crate::table::huber_rows(&new_rows);
     let mut rows: Vec<CellRow> = done.into_values().chain(new_rows).collect();
     sort_rows(&mut rows);
     let interrupted = rows.len() < plan.pairs.len() + plan.n_cells();
@@ -148,7 +148,7 @@ impl PairLs {
     fn from_row(ctx: &Context, row: CellRow, alternatives: Vec<Vec<f64>>) -> Self {
         // `CellRow::from_ls` marks a fit ok exactly when `LsFit::ok` holds (finite sigma, not
         // non_finite), so this is the fresh run's condition too.
-        let start = match (row.ok(), row.sigma) {
+        let start = match (row.ok(), row.fit.sigma) {
             (true, Some(sigma)) => Some((sigma, ctx.theta(&row))),
             _ => None,
         };
@@ -171,7 +171,7 @@ fn run_in_pool(
 ) -> Vec<CellRow> {
     let judge = ctx.judge();
     let stopped = || stop.load(Ordering::Relaxed);
-    let huber_key = |cell: Cell| huber_key(&plan.pairs[cell.pair], cell.k_index);
+    let huber_key = |cell: Cell| RowKey::huber(&plan.pairs[cell.pair], cell.k_index);
     progress.message("least-squares phase");
     // The least-squares phase of one pair of `plan.ls_pairs()` (index `p`; beyond the plan's
     // own pairs, a sub-model kept for its nested start only, which gives no row) from the
@@ -183,7 +183,7 @@ fn run_in_pool(
         if p >= own && !ctx.solver.nested_starts {
             return None;
         }
-        let resumed = if p < own { done.get(&ls_key(pair)) } else { None };
+        let resumed = if p < own { done.get(&RowKey::ls(pair)) } else { None };
         let all_done =
             p < own && (0..plan.ks.len()).all(|k| done.contains_key(&huber_key(Cell { pair: p, k_index: k })));
         if let (Some(row), true) = (resumed, all_done) {
@@ -201,7 +201,7 @@ fn run_in_pool(
             Ok(fit) => (ctx.with_offset(CellRow::from_ls(&fit, t.elapsed().as_secs_f64())), fit.alternatives),
             Err(e) => {
                 let reason = format!("least-squares phase panicked: {}", panic_message(e));
-                (CellRow::failed(Method::Ls, pair.nb, pair.nf, pair.delay, None, reason), Vec::new())
+                (CellRow::failed(RowKey::ls(pair), None, reason), Vec::new())
             }
         };
         if let Some(row) = resumed {
@@ -333,9 +333,7 @@ fn chain_cells(
     progress: &Progress,
 ) -> Vec<CellRow> {
     let pair = plan.pairs[p];
-    let failed = |ki: usize, reason: String| {
-        CellRow::failed(Method::Huber, pair.nb, pair.nf, pair.delay, Some((ki, plan.ks[ki])), reason)
-    };
+    let failed = |ki: usize, reason: String| CellRow::failed(RowKey::huber(&pair, ki), Some(plan.ks[ki]), reason);
     let rows: Vec<CellRow> = match &ls.start {
         None => {
             let reason = ls.row.reason.as_deref().unwrap_or("it failed");
@@ -356,14 +354,9 @@ fn chain_cells(
             cells
                 .into_iter()
                 .map(|(ki, cell)| match cell {
-                    CellOutcome::Fit { fit, start, seconds } => ctx.with_offset(CellRow::from_huber_of_pair(
-                        &fit,
-                        (pair.nb, pair.nf, pair.delay),
-                        *sigma,
-                        ki,
-                        start,
-                        seconds,
-                    )),
+                    CellOutcome::Fit { fit, start, seconds } => {
+                        ctx.with_offset(CellRow::from_huber(&fit, &pair, *sigma, ki, start, seconds))
+                    }
                     CellOutcome::Panicked(reason) => failed(ki, reason),
                 })
                 .collect()
@@ -389,8 +382,7 @@ fn huber_cell(
 ) -> CellRow {
     let pair = plan.pairs[cell.pair];
     let k = plan.ks[cell.k_index];
-    let failed =
-        |reason: String| CellRow::failed(Method::Huber, pair.nb, pair.nf, pair.delay, Some((cell.k_index, k)), reason);
+    let failed = |reason: String| CellRow::failed(RowKey::huber(&pair, cell.k_index), Some(k), reason);
     let Some((sigma, theta_ls)) = &ls.start else {
         return failed(format!(
             "no least-squares fit for this order pair: {}",
@@ -424,14 +416,9 @@ fn huber_cell(
         }
     }));
     match run {
-        Ok((fit, start)) => ctx.with_offset(CellRow::from_huber_of_pair(
-            &fit,
-            (pair.nb, pair.nf, pair.delay),
-            *sigma,
-            cell.k_index,
-            start,
-            t.elapsed().as_secs_f64(),
-        )),
+        Ok((fit, start)) => {
+            ctx.with_offset(CellRow::from_huber(&fit, &pair, *sigma, cell.k_index, start, t.elapsed().as_secs_f64()))
+        }
         Err(e) => failed(format!("Huber fit panicked: {}", panic_message(e))),
     }
 }

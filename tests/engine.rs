@@ -34,7 +34,7 @@ fn job(dir: &Path, out: &str) -> PathBuf {
 fn table(out: &Path) -> Vec<CellRow> {
     let mut rows = read_cells(&out.join("cells.parquet")).unwrap();
     for r in &mut rows {
-        r.seconds = 0.0;
+        r.fit.seconds = 0.0;
     }
     rows
 }

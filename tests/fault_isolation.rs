@@ -10,7 +10,7 @@
 mod common;
 
 use oesweep::export::parquet::read_cells;
-use oesweep::table::Method;
+
 use std::process::Command;
 
 #[test]
@@ -39,15 +39,15 @@ fn a_panicking_cell_becomes_a_failed_row_and_the_sweep_goes_on() {
         .unwrap();
     assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
     let rows = read_cells(&d.join("out/cells.parquet")).unwrap();
-    let huber: Vec<_> = rows.iter().filter(|r| r.method == Method::Huber).collect();
+    let huber: Vec<_> = rows.iter().filter(|r| r.is_huber()).collect();
     assert_eq!(huber.len(), 8);
     let failed: Vec<_> = huber.iter().filter(|r| !r.ok()).collect();
     assert_eq!(failed.len(), 1);
     let bad = failed[0];
-    assert_eq!((bad.nb, bad.nf, bad.k_index), (2, 2, Some(1)));
+    assert_eq!((bad.key.nb, bad.key.nf, bad.key.k_index), (2, 2, Some(1)));
     assert!(bad.reason.as_deref().unwrap_or("").contains("panicked"), "{:?}", bad.reason);
-    assert!(bad.criterion.is_none());
-    assert!(huber.iter().filter(|r| r.ok()).all(|r| r.criterion.is_some()));
+    assert!(bad.fit.criterion.is_none());
+    assert!(huber.iter().filter(|r| r.ok()).all(|r| r.fit.criterion.is_some()));
     assert!(d.join("out/selection.json").exists());
     let summary = String::from_utf8_lossy(&o.stdout);
     assert!(summary.contains("1 failed"), "{summary}");

@@ -209,10 +209,10 @@ fn delay_grid_picks_the_true_delay() {
     let rows = oesweep::export::parquet::read_cells(&dir.path().join("out/cells.parquet")).unwrap();
     // 3 x 3 orders x 6 delays: 54 least-squares rows and 108 Huber rows, one per key.
     assert_eq!(rows.len(), 54 + 108);
-    let mut keys: Vec<_> = rows.iter().map(|r| r.key()).collect();
+    let mut keys: Vec<_> = rows.iter().map(|r| r.key).collect();
     keys.dedup();
     assert_eq!(keys.len(), rows.len());
-    assert!(rows.iter().all(|r| r.offset.is_some()), "the default offset is estimated");
+    assert!(rows.iter().all(|r| r.fit.offset.is_some()), "the default offset is estimated");
 }
 
 /// A record far from zero (a sensor offset, as in the heat-exchanger and tank records) is
@@ -315,7 +315,7 @@ fn every_format_of_one_record_gives_the_same_pick() {
         let sel: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("selection.json")).unwrap()).unwrap();
         let mut rows = oesweep::export::parquet::read_cells(&out.join("cells.parquet")).unwrap();
-        rows.iter_mut().for_each(|r| r.seconds = 0.0);
+        rows.iter_mut().for_each(|r| r.fit.seconds = 0.0);
         picks.push((file, sel["m1"].clone(), sel["m2"].clone(), rows));
     }
     let (_, m1, _, _) = &picks[0];

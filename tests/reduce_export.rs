@@ -1,80 +1,86 @@
 //! The result table on disk (`cells.parquet`), JSON output, and model choice from a read-back table.
 
 use oesweep::Error;
+use oesweep::estimate::evidence::Evidence;
 use oesweep::export::json::write_json;
 use oesweep::export::parquet::{read_cells, write_cells};
 use oesweep::reduce::{FitBasis, ReduceOptions, Selection, select};
-use oesweep::table::{CellRow, Method};
+use oesweep::table::{CellRow, Fit, FitKind, RowKey, Status};
 use polars::prelude::*;
 use std::fs::File;
 use std::path::Path;
 
+fn key(kind: FitKind, nb: u32, nf: u32, delay: u32, k_index: Option<u32>) -> RowKey {
+    RowKey { kind, delay, nb, nf, k_index }
+}
+
 fn huber_row(nb: u32, nf: u32, k_index: u32, criterion: f64, fit_val: f64) -> CellRow {
     CellRow {
-        method: Method::Huber,
-        nb,
-        nf,
-        delay: 1,
-        k_index: Some(k_index),
+        key: key(FitKind::Huber, nb, nf, 1, Some(k_index)),
         k: Some(0.0625),
-        sigma: Some(3.608),
-        gamma: Some(0.0625 * 3.608),
-        criterion: Some(criterion),
-        l1c: Some(0.942),
-        fit: Some(95.22),
-        fit_val: Some(fit_val),
-        fit_band: Some(0.1 + 0.2),
-        iterations: Some(17),
-        termination: Some("converged".into()),
-        converged: true,
-        status: "ok".into(),
+        status: Status::Ok,
         reason: None,
-        max_pole_radius: Some(0.984),
-        reflections: Some(0),
-        start: "ls".into(),
-        seconds: 0.0731,
-        b: (0..nb).map(|i| 0.1 * i as f64 - 0.35).collect(),
-        f: (0..nf).map(|i| (-1.0f64).powi(i as i32) / (i + 2) as f64).collect(),
-        offset: None,
-        b_std: (0..nb).map(|i| 0.01 * (i + 1) as f64).collect(),
-        f_std: (0..nf).map(|i| 0.02 * (i + 1) as f64).collect(),
-        offset_std: None,
-        max_rel_std: Some(f64::INFINITY),
-        resid_white_p: Some(0.5),
-        resid_indep_p: None,
+        fit: Fit {
+            sigma: Some(3.608),
+            gamma: Some(0.0625 * 3.608),
+            criterion: Some(criterion),
+            l1c: Some(0.942),
+            fit: Some(95.22),
+            fit_val: Some(fit_val),
+            fit_band: Some(0.1 + 0.2),
+            iterations: Some(17),
+            termination: Some("converged".into()),
+            converged: true,
+            max_pole_radius: Some(0.984),
+            reflections: Some(0),
+            start: "ls".into(),
+            seconds: 0.0731,
+            b: (0..nb).map(|i| 0.1 * i as f64 - 0.35).collect(),
+            f: (0..nf).map(|i| (-1.0f64).powi(i as i32) / (i + 2) as f64).collect(),
+            offset: None,
+        },
+        evidence: Evidence {
+            b_std: (0..nb).map(|i| 0.01 * (i + 1) as f64).collect(),
+            f_std: (0..nf).map(|i| 0.02 * (i + 1) as f64).collect(),
+            offset_std: None,
+            max_rel_std: Some(f64::INFINITY),
+            resid_white_p: Some(0.5),
+            resid_indep_p: None,
+        },
     }
 }
 
 fn ls_row() -> CellRow {
-    CellRow {
-        method: Method::Ls,
-        k_index: None,
-        k: None,
+    let mut r = huber_row(9, 12, 0, 12.5, 82.5);
+    r.key = key(FitKind::Ls, 9, 12, 1, None);
+    r.k = None;
+    r.fit = Fit {
         gamma: None,
         l1c: None,
         fit_val: None,
         fit_band: None,
         termination: Some("small_step".into()),
         start: "init".into(),
-        ..huber_row(9, 12, 0, 12.5, 82.5)
-    }
+        ..r.fit
+    };
+    r
 }
 
 /// A handful of rows covering every kind: huber ok, ls, failed (nulls, empty b/f), and awkward
 /// floats (negative zero, subnormal, huge, non-terminating binary fractions).
 fn sample_rows() -> Vec<CellRow> {
     let mut odd = huber_row(2, 1, 3, f64::MIN_POSITIVE / 8.0, 1e300);
-    odd.b = vec![-0.0, 0.0, f64::EPSILON, -1.0 / 3.0];
-    odd.f = vec![];
-    odd.sigma = Some(-0.0);
-    odd.converged = false;
-    odd.termination = Some("max_iterations".into());
+    odd.fit.b = vec![-0.0, 0.0, f64::EPSILON, -1.0 / 3.0];
+    odd.fit.f = vec![];
+    odd.fit.sigma = Some(-0.0);
+    odd.fit.converged = false;
+    odd.fit.termination = Some("max_iterations".into());
     odd.reason = Some("unused reason, with unicode: \u{3c3} \u{2264} 1".into());
     vec![
         huber_row(9, 12, 1, 0.2255, 82.5),
         ls_row(),
-        CellRow::failed(Method::Huber, 14, 15, 1, Some((39, 2.0)), "Huber fit ended non_finite".into()),
-        CellRow::failed(Method::Ls, 14, 15, 2, None, "least-squares fit ended non_finite".into()),
+        CellRow::failed(key(FitKind::Huber, 14, 15, 1, Some(39)), Some(2.0), "Huber fit ended non_finite".into()),
+        CellRow::failed(key(FitKind::Ls, 14, 15, 2, None), None, "least-squares fit ended non_finite".into()),
         odd,
     ]
 }
@@ -114,18 +120,11 @@ fn parquet_roundtrip_of_a_large_repetitive_table() {
     let rows: Vec<CellRow> = (0..1000u32)
         .map(|i| {
             let mut r = huber_row(7 + i % 8, 4 + i % 12, i % 40, 0.1 * (i % 5) as f64, 80.0 + (i % 7) as f64);
-            r.fit_band = Some(if i % 2 == 0 { 0.0 } else { -0.0 });
-            r.seconds = if i % 3 == 0 { -0.0 } else { 0.0 };
-            r.b[0] = if i % 2 == 0 { -0.0 } else { 0.0 };
+            r.fit.fit_band = Some(if i % 2 == 0 { 0.0 } else { -0.0 });
+            r.fit.seconds = if i % 3 == 0 { -0.0 } else { 0.0 };
+            r.fit.b[0] = if i % 2 == 0 { -0.0 } else { 0.0 };
             if i % 10 == 0 {
-                r = CellRow::failed(
-                    Method::Huber,
-                    7,
-                    4 + i as usize % 12,
-                    1,
-                    Some((i as usize % 40, 0.05)),
-                    "x".into(),
-                );
+                r = CellRow::failed(key(FitKind::Huber, 7, 4 + i % 12, 1, Some(i % 40)), Some(0.05), "x".into());
             }
             r
         })
@@ -240,15 +239,15 @@ fn selection_from_a_written_table_to_json() {
         .enumerate()
         .map(|(i, &w)| huber_row(9, 4 + i as u32, 2, w, 80.0 + i as f64))
         .collect();
-    rows.push(CellRow::failed(Method::Huber, 9, 9, 1, Some((2, 0.0625)), "diverged".into()));
+    rows.push(CellRow::failed(key(FitKind::Huber, 9, 9, 1, Some(2)), Some(0.0625), "diverged".into()));
     rows.push(ls_row());
     write_cells(&path, &rows).unwrap();
     let back = read_cells(&path).unwrap();
     let sel = select(&back, &ReduceOptions::new(FitBasis::Validation));
     assert_eq!((sel.cells, sel.failed), (6, 1));
     let m1 = sel.m1.as_ref().unwrap();
-    assert_eq!((m1.model.nb, m1.model.nf, m1.model.k_index), (9, 6, 2));
-    assert_eq!(m1.model.b, rows[2].b);
+    assert_eq!((m1.model.key.nb, m1.model.key.nf, m1.model.k_index()), (9, 6, 2));
+    assert_eq!(m1.model.fit.b, rows[2].fit.b);
 
     let json = dir.path().join("selection.json");
     write_json(&json, &sel).unwrap();
@@ -259,9 +258,9 @@ fn selection_from_a_written_table_to_json() {
     assert_eq!(text, serde_json::to_string_pretty(&sel).unwrap() + "\n");
     let parsed: Selection = serde_json::from_str(&text).unwrap();
     let m1p = parsed.m1.as_ref().unwrap();
-    assert_eq!((m1p.model.nb, m1p.model.nf, m1p.model.k_index, &m1p.rule), (9, 6, 2, &m1.rule));
+    assert_eq!((m1p.model.key.nb, m1p.model.key.nf, m1p.model.k_index(), &m1p.rule), (9, 6, 2, &m1.rule));
     assert_eq!(m1p.candidates.len(), m1.candidates.len());
-    assert_eq!(parsed.m2.as_ref().map(|p| p.model.nf), sel.m2.as_ref().map(|p| p.model.nf));
+    assert_eq!(parsed.m2.as_ref().map(|p| p.model.key.nf), sel.m2.as_ref().map(|p| p.model.key.nf));
     assert_eq!(dir_entries(dir.path()), vec!["cells.parquet", "selection.json"]);
 }
 

@@ -101,7 +101,7 @@ fn write_job(dir: &Path, file: &str, data: &str, start: &str, k_count: usize, ou
 }
 
 fn key(r: &CellRow) -> (String, u32, u32, Option<u32>) {
-    (r.method.as_str().to_string(), r.nb, r.nf, r.k_index)
+    (r.key.kind.as_str().to_string(), r.key.nb, r.key.nf, r.key.k_index)
 }
 
 /// The table without the wall-clock column, checked to hold one row per key.
@@ -110,7 +110,7 @@ fn table(path: &Path) -> Vec<CellRow> {
     let keys: HashSet<_> = rows.iter().map(key).collect();
     assert_eq!(keys.len(), rows.len(), "{}: a cell has two rows", path.display());
     for r in &mut rows {
-        r.seconds = 0.0;
+        r.fit.seconds = 0.0;
     }
     rows
 }
@@ -139,15 +139,15 @@ fn saved_rows(parts: &Path) -> usize {
 
 /// Huber rows in the checkpoint.
 fn huber_rows(parts: &Path) -> usize {
-    part_files(parts).iter().map(|p| read_cells(p).unwrap().iter().filter(|r| r.k_index.is_some()).count()).sum()
+    part_files(parts).iter().map(|p| read_cells(p).unwrap().iter().filter(|r| r.key.k_index.is_some()).count()).sum()
 }
 
 /// Order pairs with some but not all of their Huber cells in the checkpoint.
 fn partial_pairs(parts: &Path) -> usize {
     let mut per_pair = std::collections::HashMap::new();
     for p in part_files(parts) {
-        for r in read_cells(&p).unwrap().iter().filter(|r| r.k_index.is_some()) {
-            *per_pair.entry((r.nb, r.nf)).or_insert(0) += 1;
+        for r in read_cells(&p).unwrap().iter().filter(|r| r.key.k_index.is_some()) {
+            *per_pair.entry((r.key.nb, r.key.nf)).or_insert(0) += 1;
         }
     }
     per_pair.values().filter(|&&n| n < KS).count()

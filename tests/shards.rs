@@ -51,10 +51,10 @@ fn setup(dir: &Path, start: &str, delays: [usize; 2]) -> PathBuf {
 /// The table without the wall-clock column, checked to hold one row per key.
 fn table(path: &Path) -> Vec<CellRow> {
     let mut rows = read_cells(path).unwrap();
-    let keys: HashSet<_> = rows.iter().map(oesweep::table::CellRow::key).collect();
+    let keys: HashSet<_> = rows.iter().map(|r| r.key).collect();
     assert_eq!(keys.len(), rows.len(), "{}: a cell has two rows", path.display());
     for r in &mut rows {
-        r.seconds = 0.0;
+        r.fit.seconds = 0.0;
     }
     rows
 }
@@ -179,7 +179,7 @@ fn merge_names_missing_cells_and_partial_merges_what_there_is() {
     let partial = table(&out.join("cells.parquet"));
     let kept: HashSet<(u32, u32)> =
         layout[1].iter().map(|&p| (plan.pairs[p].nb as u32, plan.pairs[p].nf as u32)).collect();
-    let want: Vec<CellRow> = expected.iter().filter(|r| !kept.contains(&(r.nb, r.nf))).cloned().collect();
+    let want: Vec<CellRow> = expected.iter().filter(|r| !kept.contains(&(r.key.nb, r.key.nf))).cloned().collect();
     assert!(partial == want, "the partial table holds exactly the rows of shards 0 and 2");
     assert!(out.join("parts/shard-0-of-3").exists(), "a partial merge keeps the checkpoint");
 

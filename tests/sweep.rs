@@ -4,7 +4,7 @@
 mod common;
 
 use oesweep::export::parquet::read_cells;
-use oesweep::table::{CellRow, Method};
+use oesweep::table::{CellRow, FitKind};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -46,7 +46,7 @@ fn run(job: &Path, threads: &str) -> Vec<CellRow> {
 /// Everything but the wall-clock column.
 fn strip_seconds(mut rows: Vec<CellRow>) -> Vec<CellRow> {
     for r in &mut rows {
-        r.seconds = 0.0;
+        r.fit.seconds = 0.0;
     }
     rows
 }
@@ -61,19 +61,21 @@ fn small_sweep_writes_one_row_per_cell_and_picks_true_orders() {
     assert!(!dir.path().join("out").exists(), "plan must not write anything");
 
     let rows = run(&job, "2");
-    let huber: Vec<&CellRow> = rows.iter().filter(|r| r.method == Method::Huber).collect();
+    let huber: Vec<&CellRow> = rows.iter().filter(|r| r.key.kind == FitKind::Huber).collect();
     assert_eq!(huber.len(), 3 * 4 * 3);
-    assert_eq!(rows.iter().filter(|r| r.method == Method::Ls).count(), 12);
-    let mut keys: Vec<(u32, u32, u32)> = huber.iter().map(|r| (r.nb, r.nf, r.k_index.unwrap())).collect();
+    assert_eq!(rows.iter().filter(|r| r.key.kind == FitKind::Ls).count(), 12);
+    let mut keys: Vec<(u32, u32, u32)> = huber.iter().map(|r| (r.key.nb, r.key.nf, r.key.k_index.unwrap())).collect();
     keys.sort();
     keys.dedup();
     assert_eq!(keys.len(), 36, "one row per cell");
     for r in &huber {
         assert!(r.ok(), "{r:?}");
-        assert!(r.criterion.is_some() && r.l1c.is_some() && r.fit_val.is_some() && r.fit_band.is_some());
-        assert_eq!(r.b.len(), r.nb as usize);
-        assert_eq!(r.f.len(), r.nf as usize);
-        assert!((r.gamma.unwrap() - r.k.unwrap() * r.sigma.unwrap()).abs() < 1e-12);
+        assert!(
+            r.fit.criterion.is_some() && r.fit.l1c.is_some() && r.fit.fit_val.is_some() && r.fit.fit_band.is_some()
+        );
+        assert_eq!(r.fit.b.len(), r.key.nb as usize);
+        assert_eq!(r.fit.f.len(), r.key.nf as usize);
+        assert!((r.fit.gamma.unwrap() - r.k.unwrap() * r.fit.sigma.unwrap()).abs() < 1e-12);
     }
 
     let out = dir.path().join("out");
@@ -121,8 +123,8 @@ fn a_larger_model_never_fits_worse_in_least_squares() {
         std::fs::write(&p, job.to_string()).unwrap();
         run(&p, "2")
             .into_iter()
-            .filter(|r| r.method == Method::Ls)
-            .map(|r| ((r.nb, r.nf), r.criterion.unwrap()))
+            .filter(|r| r.key.kind == FitKind::Ls)
+            .map(|r| ((r.key.nb, r.key.nf), r.fit.criterion.unwrap()))
             .collect()
     };
     let rises = |v: &std::collections::HashMap<(u32, u32), f64>| -> usize {

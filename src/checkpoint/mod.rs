@@ -97,7 +97,7 @@ mod tests {
     use super::read::list_parts;
     use super::*;
     use crate::export;
-    use crate::table::{CellRow, Method};
+    use crate::table::{CellRow, FitKind, RowKey};
     use serde_json::json;
     use std::path::Path;
     use std::time::Duration;
@@ -133,7 +133,13 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let w = Writer::start(dir.path().to_path_buf(), 7, Duration::from_secs(3600), 4);
         for nf in 0..10 {
-            w.sender().send(CellRow::failed(Method::Huber, 1, nf, 1, Some((0, 0.5)), "x".into())).unwrap();
+            w.sender()
+                .send(CellRow::failed(
+                    RowKey { kind: FitKind::Huber, delay: 1, nb: 1, nf, k_index: Some(0) },
+                    Some(0.5),
+                    "x".into(),
+                ))
+                .unwrap();
         }
         let saved = w.finish();
         assert!(saved.error.is_none());
@@ -148,7 +154,13 @@ mod tests {
     fn checkpoint_writer_flushes_on_time() {
         let dir = tempfile::tempdir().unwrap();
         let w = Writer::start(dir.path().to_path_buf(), 1, Duration::from_millis(50), 1000);
-        w.sender().send(CellRow::failed(Method::Ls, 1, 1, 1, None, "x".into())).unwrap();
+        w.sender()
+            .send(CellRow::failed(
+                RowKey { kind: FitKind::Ls, delay: 1, nb: 1, nf: 1, k_index: None },
+                None,
+                "x".into(),
+            ))
+            .unwrap();
         std::thread::sleep(Duration::from_millis(500));
         assert_eq!(list_parts(dir.path()).unwrap().len(), 1, "written before the end");
         assert_eq!(w.finish().parts, 1);

@@ -10,7 +10,7 @@ use crate::export;
 use crate::job::Job;
 use crate::plan::Plan;
 use crate::shard::Shard;
-use crate::table::{CellRow, Method, RowKey, huber_key, ls_key};
+use crate::table::{CellRow, RowKey};
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
@@ -30,7 +30,7 @@ pub struct Existing {
 
 impl Existing {
     pub fn huber_rows(&self) -> usize {
-        self.rows.iter().filter(|r| r.method == Method::Huber).count()
+        crate::table::huber_rows(&self.rows)
     }
 }
 
@@ -80,8 +80,9 @@ pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
         return Err(refuse(parts, format!("holds an interrupted run of a different job: {what}")));
     }
 
-    let huber_keys: HashSet<RowKey> = plan.cells().iter().map(|c| huber_key(&plan.pairs[c.pair], c.k_index)).collect();
-    let ls_keys: HashSet<RowKey> = plan.pairs.iter().map(ls_key).collect();
+    let huber_keys: HashSet<RowKey> =
+        plan.cells().iter().map(|c| RowKey::huber(&plan.pairs[c.pair], c.k_index)).collect();
+    let ls_keys: HashSet<RowKey> = plan.pairs.iter().map(RowKey::ls).collect();
     let mut seen = HashSet::new();
     let mut out =
         Existing { parts: files.len(), next_part: files.last().map_or(1, |(n, _)| n + 1), ..Default::default() };
@@ -95,24 +96,15 @@ pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
             other => other,
         })?;
         for (i, row) in rows.into_iter().enumerate() {
-            let key = row.key();
-            let k_ok = match (row.k_index, row.k) {
+            let key = row.key;
+            let k_ok = match (key.k_index, row.k) {
                 (Some(ki), Some(k)) => plan.ks.get(ki as usize).is_some_and(|&pk| pk.to_bits() == k.to_bits()),
                 (None, None) => true,
                 _ => false,
             };
-            let known = if row.method == Method::Huber { huber_keys.contains(&key) } else { ls_keys.contains(&key) };
+            let known = if row.is_huber() { huber_keys.contains(&key) } else { ls_keys.contains(&key) };
             if !(known && k_ok) {
-                return Err(refuse(
-                    path,
-                    format!(
-                        "row {i} ({} nb={} nf={} k_index={:?}) is not a cell of this job",
-                        row.method.as_str(),
-                        row.nb,
-                        row.nf,
-                        row.k_index
-                    ),
-                ));
+                return Err(refuse(path, format!("row {i} ({key}) is not a cell of this job")));
             }
             if seen.insert(key) {
                 out.rows.push(row);
@@ -130,13 +122,13 @@ pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
 pub fn inspect_all(out: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
     let parts = out.join(PARTS_DIR);
     let mut all = inspect(&parts, now, plan)?;
-    let mut seen: HashSet<RowKey> = all.rows.iter().map(CellRow::key).collect();
+    let mut seen: HashSet<RowKey> = all.rows.iter().map(|r| r.key).collect();
     for (dir, _) in shard_folders(&parts)? {
         let more = inspect(&dir, now, plan)?;
         all.parts += more.parts;
         all.duplicates += more.duplicates;
         for row in more.rows {
-            if seen.insert(row.key()) {
+            if seen.insert(row.key) {
                 all.rows.push(row);
             } else {
                 all.duplicates += 1;
@@ -206,21 +198,17 @@ pub fn gather(out: &Path) -> Result<Gathered> {
         let existing = inspect(&dir, &manifest, &plan)?;
         duplicates += existing.duplicates;
         for row in existing.rows {
-            match found.get(&row.key()) {
+            match found.get(&row.key) {
                 None => {
-                    found.insert(row.key(), (row, folders.len()));
+                    found.insert(row.key, (row, folders.len()));
                 }
                 Some((first, at)) => {
-                    let same = CellRow { seconds: 0.0, ..row.clone() } == CellRow { seconds: 0.0, ..first.clone() };
-                    if !same {
+                    if !row.same_result(first) {
                         return Err(Error::input(
                             &dir,
                             format!(
-                                "{} row nb={} nf={} k_index={:?} differs from the one in {}",
-                                row.method.as_str(),
-                                row.nb,
-                                row.nf,
-                                row.k_index,
+                                "row {} differs from the one in {}",
+                                row.key,
                                 folders.get(*at).map_or(dir.clone(), |(d, _, _): &(PathBuf, _, _)| d.clone()).display()
                             ),
                         ));

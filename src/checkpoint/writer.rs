@@ -4,7 +4,7 @@
 use super::folder::part_path;
 use crate::error::Error;
 use crate::export;
-use crate::table::{CellRow, Method};
+use crate::table::CellRow;
 use std::path::PathBuf;
 use std::sync::mpsc::{self, RecvTimeoutError};
 use std::thread::JoinHandle;
@@ -49,7 +49,7 @@ impl Writer {
                             next += 1;
                             saved.parts += 1;
                             saved.rows += buf.len();
-                            saved.huber_rows += buf.iter().filter(|r| r.method == Method::Huber).count();
+                            saved.huber_rows += crate::table::huber_rows(buf);
                             buf.clear();
                             // Rows of a failed write were in this batch: all is saved again.
                             saved.error = None;

@@ -35,9 +35,11 @@ pub(super) fn print_fit_summary(r: &FitReport) {
     println!("{:<22}{:>18} {:>17}", "termination", l.termination.as_str(), h.termination.as_str());
     println!("{:<22}{:>18.6}{:>18.6}", "max pole radius", l.assessment.max_pole_radius, h.assessment.max_pole_radius);
     let (le, he) = (&l.assessment.evidence, &h.assessment.evidence);
-    println!("{:<22}{:>18.3e}{:>18.3e}", "max std/|value|", le.max_rel_std, he.max_rel_std);
-    println!("{:<22}{:>18.4}{:>18.4}", "residuals white p", le.resid_white_p, he.resid_white_p);
-    println!("{:<22}{:>18.4}{:>18.4}", "resid. indep. of u p", le.resid_indep_p, he.resid_indep_p);
+    // Not computed prints as NaN, as the table's null reads in numpy.
+    let v = |x: Option<f64>| x.unwrap_or(f64::NAN);
+    println!("{:<22}{:>18.3e}{:>18.3e}", "max std/|value|", v(le.max_rel_std), v(he.max_rel_std));
+    println!("{:<22}{:>18.4}{:>18.4}", "residuals white p", v(le.resid_white_p), v(he.resid_white_p));
+    println!("{:<22}{:>18.4}{:>18.4}", "resid. indep. of u p", v(le.resid_indep_p), v(he.resid_indep_p));
     println!();
     let with_std = |v: &[f64], s: &[f64]| {
         v.iter().zip(s).map(|(v, s)| format!("{v:.6e} +/- {s:.1e}")).collect::<Vec<_>>().join(", ")
@@ -100,12 +102,12 @@ pub(super) fn print_picks(selection: &reduce::Selection) {
         match pick {
             Some(m) => println!(
                 "{label} OE({}, {}) k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  fit = {}",
-                m.model.nb,
-                m.model.nf,
-                m.model.k,
-                m.model.gamma,
-                m.model.criterion,
-                100.0 * m.model.l1c,
+                m.model.key.nb,
+                m.model.key.nf,
+                m.model.k(),
+                m.model.gamma(),
+                m.model.criterion(),
+                100.0 * m.model.l1c(),
                 opt_pct(Some(m.model.score))
             ),
             None => println!("{label} none (no usable cell)"),

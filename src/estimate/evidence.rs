@@ -43,10 +43,13 @@ pub struct Evidence {
     pub b_std: Vec<f64>,
     pub f_std: Vec<f64>,
     pub offset_std: Option<f64>,
-    /// Largest std / |value| over the parameters (infinite: an undetermined parameter).
-    pub max_rel_std: f64,
-    pub resid_white_p: f64,
-    pub resid_indep_p: f64,
+    /// Largest std / |value| over the parameters (infinite: an undetermined parameter; None:
+    /// not computed).
+    pub max_rel_std: Option<f64>,
+    /// p-values of the residual tests: whiteness, independence from the input (None: not
+    /// computed).
+    pub resid_white_p: Option<f64>,
+    pub resid_indep_p: Option<f64>,
 }
 
 /// Buffers of [`evidence`], one per worker (in the solver's [`super::Workspace`]): the robust
@@ -123,9 +126,11 @@ pub fn evidence(
         b_std: b.to_vec(),
         f_std: f.to_vec(),
         offset_std: c.first().copied(),
-        max_rel_std,
-        resid_white_p: whiteness_p(&s.e),
-        resid_indep_p: independence_p(&s.e, &s.uc, &s.ruu),
+        // An infinite ratio (an undetermined parameter) is a finding; a NaN or a non-finite
+        // p-value is not a number to report.
+        max_rel_std: Some(max_rel_std).filter(|v| !v.is_nan()),
+        resid_white_p: Some(whiteness_p(&s.e)).filter(|v| v.is_finite()),
+        resid_indep_p: Some(independence_p(&s.e, &s.uc, &s.ruu)).filter(|v| v.is_finite()),
     }
 }
 

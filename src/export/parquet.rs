@@ -1,29 +1,8 @@
 //! `cells.parquet`: the result table, one [`CellRow`] per row.
 //!
-//! Columns, in this order, named after the fields of [`CellRow`]:
-//!
-//! | column | dtype | nulls |
-//! |---|---|---|
-//! | `method` | String (`"ls"` / `"huber"`) | no |
-//! | `nb`, `nf`, `delay` | UInt32 | no |
-//! | `k_index` | UInt32 | yes |
-//! | `k`, `sigma`, `gamma`, `criterion`, `l1c`, `fit`, `fit_val`, `fit_band` | Float64 | yes |
-//! | `iterations` | UInt32 | yes |
-//! | `termination` | String | yes |
-//! | `converged` | Boolean | no |
-//! | `status` | String (`"ok"` / `"failed"`) | no |
-//! | `reason` | String | yes |
-//! | `max_pole_radius` | Float64 | yes |
-//! | `reflections` | UInt32 | yes |
-//! | `start` | String | no |
-//! | `seconds` | Float64 | no |
-//! | `b`, `f` | List(Float64) | no (a failed cell has empty lists) |
-//! | `offset` | Float64 | yes (null: the model has no offset) |
-//! | `b_std`, `f_std` | List(Float64) | no (empty for a failed cell) |
-//! | `offset_std`, `max_rel_std`, `resid_white_p`, `resid_indep_p` | Float64 | yes |
-//!
-//! The columns from `offset` on are optional on reading (null or empty when absent): tables of
-//! older versions lack them.
+//! The columns, their order, types and nulls are [`crate::table::COLUMNS`] (README "Columns
+//! of cells.parquet"); this module only maps that list onto polars. Columns marked optional
+//! there are absent from tables of older versions and read as null (or an empty list).
 //!
 //! Compression is zstd (polars' default). The file is written atomically (see [`crate::export`]),
 //! so a sweep can rewrite it as a checkpoint while a reader looks at the previous version.
@@ -34,7 +13,7 @@
 //! size when a *data page header* is damaged, which aborts the process.
 
 use crate::error::{Error, Result};
-use crate::table::{CellRow, Method};
+use crate::table::{self, COLUMNS, CellRow, ColumnType, FitKind, RowKey, Value};
 use polars::prelude::*;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -80,302 +59,123 @@ fn read_frame(file: File) -> std::result::Result<DataFrame, String> {
     let unreadable = |e: PolarsError| format!("not a readable Parquet file: {e}");
     let mut reader = ParquetReader::new(file);
     let schema = reader.schema().map_err(unreadable)?;
-    if let Some((name, _)) = COLUMNS.iter().find(|(name, _)| !schema.contains(name)) {
-        return Err(format!("missing column `{name}` (not a table written by oesweep)"));
+    if let Some(c) = COLUMNS.iter().find(|c| !c.optional && !schema.contains(c.name)) {
+        return Err(format!("missing column `{}` (not a table written by oesweep)", c.name));
     }
-    let names = COLUMNS
-        .iter()
-        .chain(OPTIONAL.iter().filter(|(name, _)| schema.contains(name)))
-        .map(|(name, _)| name.to_string())
-        .collect();
+    let names = COLUMNS.iter().filter(|c| schema.contains(c.name)).map(|c| c.name.to_string()).collect();
     reader.with_columns(Some(names)).finish().map_err(unreadable)
 }
 
-/// Column names in table order; the single source for writing and for the schema check.
-const COLUMNS: [(&str, Kind); 24] = [
-    ("method", Kind::Str),
-    ("nb", Kind::U32),
-    ("nf", Kind::U32),
-    ("delay", Kind::U32),
-    ("k_index", Kind::U32),
-    ("k", Kind::F64),
-    ("sigma", Kind::F64),
-    ("gamma", Kind::F64),
-    ("criterion", Kind::F64),
-    ("l1c", Kind::F64),
-    ("fit", Kind::F64),
-    ("fit_val", Kind::F64),
-    ("fit_band", Kind::F64),
-    ("iterations", Kind::U32),
-    ("termination", Kind::Str),
-    ("converged", Kind::Bool),
-    ("status", Kind::Str),
-    ("reason", Kind::Str),
-    ("max_pole_radius", Kind::F64),
-    ("reflections", Kind::U32),
-    ("start", Kind::Str),
-    ("seconds", Kind::F64),
-    ("b", Kind::ListF64),
-    ("f", Kind::ListF64),
-];
-
-/// Columns written after [`COLUMNS`] that tables of older versions lack: null when absent.
-const OPTIONAL: [(&str, Kind); 7] = [
-    ("offset", Kind::F64),
-    ("b_std", Kind::ListF64),
-    ("f_std", Kind::ListF64),
-    ("offset_std", Kind::F64),
-    ("max_rel_std", Kind::F64),
-    ("resid_white_p", Kind::F64),
-    ("resid_indep_p", Kind::F64),
-];
-
-#[derive(Clone, Copy)]
-enum Kind {
-    Str,
-    U32,
-    F64,
-    Bool,
-    ListF64,
+fn dtype(ty: ColumnType) -> DataType {
+    match ty {
+        ColumnType::Str => DataType::String,
+        ColumnType::U32 => DataType::UInt32,
+        ColumnType::F64 => DataType::Float64,
+        ColumnType::Bool => DataType::Boolean,
+        ColumnType::ListF64 => DataType::List(Box::new(DataType::Float64)),
+    }
 }
 
-impl Kind {
-    fn dtype(self) -> DataType {
-        match self {
-            Kind::Str => DataType::String,
-            Kind::U32 => DataType::UInt32,
-            Kind::F64 => DataType::Float64,
-            Kind::Bool => DataType::Boolean,
-            Kind::ListF64 => DataType::List(Box::new(DataType::Float64)),
+/// One column of the frame from the rows' values.
+fn to_column(c: &table::Column, rows: &[CellRow]) -> Column {
+    let name = c.name.into();
+    let values = rows.iter().map(|r| (c.get)(r));
+    match c.ty {
+        ColumnType::Str => {
+            Column::new(name, values.map(|v| if let Value::Str(x) = v { x } else { None }).collect::<Vec<_>>())
+        }
+        ColumnType::U32 => {
+            Column::new(name, values.map(|v| if let Value::U32(x) = v { x } else { None }).collect::<Vec<_>>())
+        }
+        ColumnType::F64 => {
+            Column::new(name, values.map(|v| if let Value::F64(x) = v { x } else { None }).collect::<Vec<_>>())
+        }
+        ColumnType::Bool => {
+            Column::new(name, values.map(|v| if let Value::Bool(x) = v { x } else { None }).collect::<Vec<_>>())
+        }
+        ColumnType::ListF64 => {
+            let lists: Vec<Option<Vec<f64>>> =
+                values.map(|v| if let Value::ListF64(x) = v { x } else { None }).collect();
+            let len: usize = lists.iter().flatten().map(Vec::len).sum();
+            let mut builder = ListPrimitiveChunkedBuilder::<Float64Type>::new(name, rows.len(), len, DataType::Float64);
+            for l in &lists {
+                match l {
+                    Some(l) => builder.append_slice(l),
+                    None => builder.append_null(),
+                }
+            }
+            builder.finish().into_column()
         }
     }
 }
 
-fn list_column(name: &str, rows: &[CellRow], get: impl Fn(&CellRow) -> &[f64]) -> Column {
-    let values: usize = rows.iter().map(|r| get(r).len()).sum();
-    let mut builder =
-        ListPrimitiveChunkedBuilder::<Float64Type>::new(name.into(), rows.len(), values, DataType::Float64);
-    for r in rows {
-        builder.append_slice(get(r));
-    }
-    builder.finish().into_column()
-}
-
 fn to_frame(rows: &[CellRow]) -> PolarsResult<DataFrame> {
-    // One closure per column keeps the order next to COLUMNS; checked against it below.
-    fn col<'a, T>(name: &str, rows: &'a [CellRow], get: impl Fn(&'a CellRow) -> T) -> Column
-    where
-        Series: NamedFrom<Vec<T>, [T]>,
-    {
-        Column::new(name.into(), rows.iter().map(get).collect::<Vec<T>>())
-    }
-    let columns = vec![
-        col("method", rows, |r| r.method.as_str()),
-        col("nb", rows, |r| r.nb),
-        col("nf", rows, |r| r.nf),
-        col("delay", rows, |r| r.delay),
-        col("k_index", rows, |r| r.k_index),
-        col("k", rows, |r| r.k),
-        col("sigma", rows, |r| r.sigma),
-        col("gamma", rows, |r| r.gamma),
-        col("criterion", rows, |r| r.criterion),
-        col("l1c", rows, |r| r.l1c),
-        col("fit", rows, |r| r.fit),
-        col("fit_val", rows, |r| r.fit_val),
-        col("fit_band", rows, |r| r.fit_band),
-        col("iterations", rows, |r| r.iterations),
-        col("termination", rows, |r| r.termination.as_deref()),
-        col("converged", rows, |r| r.converged),
-        col("status", rows, |r| r.status.as_str()),
-        col("reason", rows, |r| r.reason.as_deref()),
-        col("max_pole_radius", rows, |r| r.max_pole_radius),
-        col("reflections", rows, |r| r.reflections),
-        col("start", rows, |r| r.start.as_str()),
-        col("seconds", rows, |r| r.seconds),
-        list_column("b", rows, |r| &r.b),
-        list_column("f", rows, |r| &r.f),
-        col("offset", rows, |r| r.offset),
-        list_column("b_std", rows, |r| &r.b_std),
-        list_column("f_std", rows, |r| &r.f_std),
-        col("offset_std", rows, |r| r.offset_std),
-        col("max_rel_std", rows, |r| r.max_rel_std),
-        col("resid_white_p", rows, |r| r.resid_white_p),
-        col("resid_indep_p", rows, |r| r.resid_indep_p),
-    ];
-    debug_assert!(
-        columns
-            .iter()
-            .zip(COLUMNS.iter().chain(&OPTIONAL))
-            .all(|(c, &(name, kind))| c.name().as_str() == name && *c.dtype() == kind.dtype())
-            && columns.len() == COLUMNS.len() + OPTIONAL.len()
-    );
-    DataFrame::new(rows.len(), columns)
+    DataFrame::new(rows.len(), COLUMNS.iter().map(|c| to_column(c, rows)).collect())
 }
 
 /// Look up a column by name and check its dtype. Errors name the column.
-fn column<'a>(df: &'a DataFrame, name: &str, kind: Kind) -> std::result::Result<&'a Column, String> {
-    let c = df.column(name).map_err(|_| format!("missing column `{name}`"))?;
-    let expected = kind.dtype();
-    if *c.dtype() != expected {
-        return Err(format!("column `{name}` has type {}, expected {expected}", c.dtype()));
+fn column<'a>(df: &'a DataFrame, c: &table::Column) -> std::result::Result<&'a Column, String> {
+    let name = c.name;
+    let col = df.column(name).map_err(|_| format!("missing column `{name}`"))?;
+    let expected = dtype(c.ty);
+    if *col.dtype() != expected {
+        return Err(format!("column `{name}` has type {}, expected {expected}", col.dtype()));
     }
     // A corrupt file can decode into columns of different lengths; indexing them would panic.
-    if c.len() != df.height() {
-        return Err(format!("column `{name}` has {} values for {} rows (corrupt file)", c.len(), df.height()));
+    if col.len() != df.height() {
+        return Err(format!("column `{name}` has {} values for {} rows (corrupt file)", col.len(), df.height()));
     }
-    Ok(c)
+    Ok(col)
 }
 
-fn dtype_err(name: &str, e: PolarsError) -> String {
-    format!("column `{name}`: {e}")
-}
-
-/// The decoded values of a column must match the frame's height (see [`column`]).
-fn checked<T>(df: &DataFrame, name: &str, values: Vec<T>) -> std::result::Result<Vec<T>, String> {
-    if values.len() == df.height() {
-        Ok(values)
-    } else {
-        Err(format!("column `{name}` has {} values for {} rows (corrupt file)", values.len(), df.height()))
-    }
-}
-
-fn opt_f64(df: &DataFrame, name: &str) -> std::result::Result<Vec<Option<f64>>, String> {
-    checked(df, name, column(df, name, Kind::F64)?.f64().map_err(|e| dtype_err(name, e))?.iter().collect())
-}
-
-fn opt_u32(df: &DataFrame, name: &str) -> std::result::Result<Vec<Option<u32>>, String> {
-    checked(df, name, column(df, name, Kind::U32)?.u32().map_err(|e| dtype_err(name, e))?.iter().collect())
-}
-
-fn opt_str(df: &DataFrame, name: &str) -> std::result::Result<Vec<Option<String>>, String> {
-    let values = column(df, name, Kind::Str)?.str().map_err(|e| dtype_err(name, e))?;
-    checked(df, name, values.iter().map(|s| s.map(str::to_string)).collect())
-}
-
-fn opt_bool(df: &DataFrame, name: &str) -> std::result::Result<Vec<Option<bool>>, String> {
-    checked(df, name, column(df, name, Kind::Bool)?.bool().map_err(|e| dtype_err(name, e))?.iter().collect())
-}
-
-fn opt_list(df: &DataFrame, name: &str) -> std::result::Result<Vec<Option<Vec<f64>>>, String> {
-    let lists = column(df, name, Kind::ListF64)?.list().map_err(|e| dtype_err(name, e))?;
-    let values = lists
-        .series_iter()
-        .enumerate()
-        .map(|(i, s)| {
-            s.map(|s| {
-                let values = s.f64().map_err(|e| dtype_err(name, e))?;
-                values
-                    .iter()
-                    .collect::<Option<Vec<f64>>>()
-                    .ok_or_else(|| format!("column `{name}`, row {i}: null inside the list"))
+/// The values of a column, one per row (checked: the decoded values must match the frame's
+/// height, see [`column`]).
+fn values(df: &DataFrame, c: &table::Column) -> std::result::Result<Vec<Value>, String> {
+    let name = c.name;
+    let col = column(df, c)?;
+    let dtype_err = |e: PolarsError| format!("column `{name}`: {e}");
+    let values: Vec<Value> = match c.ty {
+        ColumnType::Str => col.str().map_err(dtype_err)?.iter().map(|s| Value::Str(s.map(str::to_string))).collect(),
+        ColumnType::U32 => col.u32().map_err(dtype_err)?.iter().map(Value::U32).collect(),
+        ColumnType::F64 => col.f64().map_err(dtype_err)?.iter().map(Value::F64).collect(),
+        ColumnType::Bool => col.bool().map_err(dtype_err)?.iter().map(Value::Bool).collect(),
+        ColumnType::ListF64 => col
+            .list()
+            .map_err(dtype_err)?
+            .series_iter()
+            .enumerate()
+            .map(|(i, s)| {
+                s.map(|s| {
+                    s.f64()
+                        .map_err(dtype_err)?
+                        .iter()
+                        .collect::<Option<Vec<f64>>>()
+                        .ok_or_else(|| format!("column `{name}`, row {i}: null inside the list"))
+                })
+                .transpose()
+                .map(Value::ListF64)
             })
-            .transpose()
-        })
-        .collect::<std::result::Result<Vec<_>, String>>()?;
-    checked(df, name, values)
-}
-
-/// A value the row type requires (no `Option`): a null is a malformed file.
-fn required<T>(name: &str, i: usize, v: Option<T>) -> std::result::Result<T, String> {
-    v.ok_or_else(|| format!("column `{name}`, row {i}: null in a column that must not have nulls"))
+            .collect::<std::result::Result<_, String>>()?,
+    };
+    if values.len() != df.height() {
+        return Err(format!("column `{name}` has {} values for {} rows (corrupt file)", values.len(), df.height()));
+    }
+    Ok(values)
 }
 
 fn from_frame(df: &DataFrame) -> std::result::Result<Vec<CellRow>, String> {
     // Check the whole schema first so the message names the first missing column in table order.
-    for &(name, kind) in &COLUMNS {
-        column(df, name, kind)?;
+    for c in COLUMNS.iter().filter(|c| !c.optional || df.column(c.name).is_ok()) {
+        column(df, c)?;
     }
-    let method = opt_str(df, "method")?;
-    let nb = opt_u32(df, "nb")?;
-    let nf = opt_u32(df, "nf")?;
-    let delay = opt_u32(df, "delay")?;
-    let k_index = opt_u32(df, "k_index")?;
-    let k = opt_f64(df, "k")?;
-    let sigma = opt_f64(df, "sigma")?;
-    let gamma = opt_f64(df, "gamma")?;
-    let criterion = opt_f64(df, "criterion")?;
-    let l1c = opt_f64(df, "l1c")?;
-    let fit = opt_f64(df, "fit")?;
-    let fit_val = opt_f64(df, "fit_val")?;
-    let fit_band = opt_f64(df, "fit_band")?;
-    let iterations = opt_u32(df, "iterations")?;
-    let mut termination = opt_str(df, "termination")?;
-    let converged = opt_bool(df, "converged")?;
-    let mut status = opt_str(df, "status")?;
-    let mut reason = opt_str(df, "reason")?;
-    let max_pole_radius = opt_f64(df, "max_pole_radius")?;
-    let reflections = opt_u32(df, "reflections")?;
-    let mut start = opt_str(df, "start")?;
-    let seconds = opt_f64(df, "seconds")?;
-    let mut b = opt_list(df, "b")?;
-    let mut f = opt_list(df, "f")?;
-    // Optional columns: absent in tables of older versions.
-    let optional_f64 = |name: &str| -> std::result::Result<Vec<Option<f64>>, String> {
-        if df.column(name).is_ok() {
-            column(df, name, Kind::F64)?;
-            opt_f64(df, name)
-        } else {
-            Ok(vec![None; df.height()])
+    let blank = RowKey { kind: FitKind::Huber, delay: 0, nb: 0, nf: 0, k_index: None };
+    let mut rows = vec![CellRow::empty(blank); df.height()];
+    for c in COLUMNS.iter().filter(|c| !c.optional || df.column(c.name).is_ok()) {
+        for (i, v) in values(df, c)?.into_iter().enumerate() {
+            table::columns::set(&mut rows[i], c, v).map_err(|e| format!("{e} (row {i})"))?;
         }
-    };
-    let optional_list = |name: &str| -> std::result::Result<Vec<Option<Vec<f64>>>, String> {
-        if df.column(name).is_ok() {
-            column(df, name, Kind::ListF64)?;
-            opt_list(df, name)
-        } else {
-            Ok(vec![Some(Vec::new()); df.height()])
-        }
-    };
-    let offset = optional_f64("offset")?;
-    let mut b_std = optional_list("b_std")?;
-    let mut f_std = optional_list("f_std")?;
-    let offset_std = optional_f64("offset_std")?;
-    let max_rel_std = optional_f64("max_rel_std")?;
-    let resid_white_p = optional_f64("resid_white_p")?;
-    let resid_indep_p = optional_f64("resid_indep_p")?;
-
-    (0..df.height())
-        .map(|i| {
-            let method = match required("method", i, method[i].as_deref())? {
-                "ls" => Method::Ls,
-                "huber" => Method::Huber,
-                other => return Err(format!("column `method`, row {i}: unknown method {other:?}")),
-            };
-            Ok(CellRow {
-                method,
-                nb: required("nb", i, nb[i])?,
-                nf: required("nf", i, nf[i])?,
-                delay: required("delay", i, delay[i])?,
-                k_index: k_index[i],
-                k: k[i],
-                sigma: sigma[i],
-                gamma: gamma[i],
-                criterion: criterion[i],
-                l1c: l1c[i],
-                fit: fit[i],
-                fit_val: fit_val[i],
-                fit_band: fit_band[i],
-                iterations: iterations[i],
-                termination: termination[i].take(),
-                converged: required("converged", i, converged[i])?,
-                status: required("status", i, status[i].take())?,
-                reason: reason[i].take(),
-                max_pole_radius: max_pole_radius[i],
-                reflections: reflections[i],
-                start: required("start", i, start[i].take())?,
-                seconds: required("seconds", i, seconds[i])?,
-                b: required("b", i, b[i].take())?,
-                f: required("f", i, f[i].take())?,
-                offset: offset[i],
-                b_std: b_std[i].take().unwrap_or_default(),
-                f_std: f_std[i].take().unwrap_or_default(),
-                offset_std: offset_std[i],
-                max_rel_std: max_rel_std[i],
-                resid_white_p: resid_white_p[i],
-                resid_indep_p: resid_indep_p[i],
-            })
-        })
-        .collect()
+    }
+    Ok(rows)
 }
 
 #[cfg(test)]
@@ -383,7 +183,7 @@ mod tests {
     use super::*;
 
     fn row(nf: u32) -> CellRow {
-        CellRow::failed(Method::Huber, 3, nf as usize, 1, Some((0, 0.1)), "x".into())
+        CellRow::failed(RowKey { kind: FitKind::Huber, delay: 1, nb: 3, nf, k_index: Some(0) }, Some(0.1), "x".into())
     }
 
     #[test]

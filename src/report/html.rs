@@ -151,23 +151,23 @@ pub fn picks_table(rows: &[PickRow<'_>], basis_column: &str) -> String {
              <td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td></tr>",
             p.class,
             p.name,
-            r.nb,
-            r.nf,
-            r.delay,
+            r.key.nb,
+            r.key.nf,
+            r.key.delay,
             opt(r.k, 4),
-            opt(r.gamma, 4),
-            opt(r.sigma, 4),
-            opt(r.criterion, 4),
-            r.l1c.map(|v| format!("{:.2}", 100.0 * v)).unwrap_or_else(|| "–".into()),
-            pct(r.fit),
-            pct(r.fit_val),
-            pct(r.fit_band),
-            opt(r.max_pole_radius, 4),
-            r.iterations.map(|v| v.to_string()).unwrap_or_else(|| "–".into()),
-            esc(r.termination.as_deref().unwrap_or("–")),
-            opt(r.max_rel_std, 3),
-            opt(r.resid_white_p, 3),
-            opt(r.resid_indep_p, 3),
+            opt(r.fit.gamma, 4),
+            opt(r.fit.sigma, 4),
+            opt(r.fit.criterion, 4),
+            r.fit.l1c.map(|v| format!("{:.2}", 100.0 * v)).unwrap_or_else(|| "–".into()),
+            pct(r.fit.fit),
+            pct(r.fit.fit_val),
+            pct(r.fit.fit_band),
+            opt(r.fit.max_pole_radius, 4),
+            r.fit.iterations.map(|v| v.to_string()).unwrap_or_else(|| "–".into()),
+            esc(r.fit.termination.as_deref().unwrap_or("–")),
+            opt(r.evidence.max_rel_std, 3),
+            opt(r.evidence.resid_white_p, 3),
+            opt(r.evidence.resid_indep_p, 3),
             esc(&flags(r).join("; ")),
         );
     }
@@ -188,13 +188,13 @@ pub const TEST_LEVEL: f64 = 0.01;
 /// parameter whose standard deviation exceeds its value.
 pub fn flags(r: &CellRow) -> Vec<&'static str> {
     let mut out = Vec::new();
-    if r.resid_white_p.is_some_and(|p| p < TEST_LEVEL) {
+    if r.evidence.resid_white_p.is_some_and(|p| p < TEST_LEVEL) {
         out.push("residuals not white");
     }
-    if r.resid_indep_p.is_some_and(|p| p < TEST_LEVEL) {
+    if r.evidence.resid_indep_p.is_some_and(|p| p < TEST_LEVEL) {
         out.push("residuals depend on u");
     }
-    if r.max_rel_std.is_some_and(|v| v > 1.0) {
+    if r.evidence.max_rel_std.is_some_and(|v| v > 1.0) {
         out.push("a parameter's std exceeds its value");
     }
     out
@@ -233,11 +233,11 @@ pub fn candidates_table(candidates: &[Candidate], basis_column: &str, limit: usi
             h,
             "<tr><td>{}</td><td class=\"l\">OE({},{})</td><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.3}</td></tr>",
             i + 1,
-            c.nb,
-            c.nf,
-            super::plot::short(c.k),
-            sig(c.criterion, 4),
-            100.0 * c.l1c,
+            c.key.nb,
+            c.key.nf,
+            super::plot::short(c.k()),
+            sig(c.criterion(), 4),
+            100.0 * c.l1c(),
             c.score
         );
     }

@@ -62,7 +62,7 @@ use crate::job::DataSpec;
 use crate::job::{KGrid, k_values};
 use crate::reduce::Curve;
 use crate::reduce::{Candidate, Selection};
-use crate::table::{CellRow, Method};
+use crate::table::{CellRow, FitKind};
 use figures::{Figure, Picked};
 use html::{Section, esc};
 use serde::Deserialize;
@@ -139,7 +139,7 @@ struct Sweep {
 impl Sweep {
     /// A table row's model output on a record, in the data's units.
     fn output_of_row(&self, r: &CellRow, rec: &Record, is: InitialState) -> Vec<f64> {
-        model_output(&r.b, &r.f, r.delay as usize, r.offset, self.u0, &rec.u, &rec.y, is)
+        model_output(&r.fit.b, &r.fit.f, r.key.delay as usize, r.fit.offset, self.u0, &rec.u, &rec.y, is)
     }
 
     /// The robust covariance of a pick's parameters on the estimation record (None when its
@@ -152,19 +152,19 @@ impl Sweep {
         let prob = crate::estimate::Problem {
             u: &rec.u,
             y: &rec.y,
-            nb: c.nb as usize,
-            nf: c.nf as usize,
-            delay: c.delay as usize,
+            nb: c.key.nb as usize,
+            nf: c.key.nf as usize,
+            delay: c.key.delay as usize,
             offset: self.job.offset.estimated(),
         };
-        let theta = crate::estimate::theta_of(&c.b, &c.f, levels.estimated_c(c.offset));
+        let theta = crate::estimate::theta_of(&c.fit.b, &c.fit.f, levels.estimated_c(c.fit.offset));
         let yhat = prob.simulate_vec(&theta);
-        crate::estimate::evidence::covariance(&prob, &theta, crate::estimate::Loss::Huber { gamma: c.gamma }, &yhat)
+        crate::estimate::evidence::covariance(&prob, &theta, crate::estimate::Loss::Huber { gamma: c.gamma() }, &yhat)
     }
 
     /// A pick's model output on a record, in the data's units.
     fn output_of_pick(&self, c: &Candidate, rec: &Record, is: InitialState) -> Vec<f64> {
-        model_output(&c.b, &c.f, c.delay as usize, c.offset, self.u0, &rec.u, &rec.y, is)
+        model_output(&c.fit.b, &c.fit.f, c.key.delay as usize, c.fit.offset, self.u0, &rec.u, &rec.y, is)
     }
 
     fn load(folder: &Path) -> Result<Sweep> {
@@ -226,23 +226,27 @@ impl Sweep {
     /// k of a k index: from the job's grid, else from a row (a grid edited after the run).
     fn k_of(&self, k_index: u32) -> f64 {
         self.ks.get(k_index as usize).copied().unwrap_or_else(|| {
-            self.rows.iter().find(|r| r.k_index == Some(k_index)).and_then(|r| r.k).unwrap_or(f64::NAN)
+            self.rows.iter().find(|r| r.key.k_index == Some(k_index)).and_then(|r| r.k).unwrap_or(f64::NAN)
         })
     }
 
     /// The Huber row of a candidate (for sigma, iterations, termination, pole radius).
     fn huber_row(&self, c: &Candidate) -> Option<&CellRow> {
         self.rows.iter().find(|r| {
-            r.method == Method::Huber
-                && (r.nb, r.nf, r.delay) == (c.nb, c.nf, c.delay)
-                && r.k_index == Some(c.k_index)
+            r.key.kind == FitKind::Huber
+                && (r.key.nb, r.key.nf, r.key.delay) == (c.key.nb, c.key.nf, c.key.delay)
+                && r.key.k_index == Some(c.k_index())
                 && r.ok()
         })
     }
 
     /// The least-squares row of a candidate's order pair.
     fn ls_row(&self, c: &Candidate) -> Option<&CellRow> {
-        self.rows.iter().find(|r| r.method == Method::Ls && (r.nb, r.nf, r.delay) == (c.nb, c.nf, c.delay) && r.ok())
+        self.rows.iter().find(|r| {
+            r.key.kind == FitKind::Ls
+                && (r.key.nb, r.key.nf, r.key.delay) == (c.key.nb, c.key.nf, c.key.delay)
+                && r.ok()
+        })
     }
 }
 
@@ -342,17 +346,26 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
     for (name, pick) in [("M1", &sel.m1), ("M2", &sel.m2)] {
         if let Some(p) = pick {
             let m = &p.model;
-            let title =
-                format!("{name}: OE({},{}), k = {}, γ = {}", m.nb, m.nf, plot::short(m.k), plot::sig(m.gamma, 4));
+            let title = format!(
+                "{name}: OE({},{}), k = {}, γ = {}",
+                m.key.nb,
+                m.key.nf,
+                plot::short(m.k()),
+                plot::sig(m.gamma(), 4)
+            );
             let mut title = title;
-            if let Some(c) = m.offset {
+            if let Some(c) = m.fit.offset {
                 title.push_str(&format!(
                     ", offset {}{}",
                     plot::sig(c, 6),
-                    m.offset_std.map_or(String::new(), |s| format!(" ± {}", plot::sig(s, 2)))
+                    m.evidence.offset_std.map_or(String::new(), |s| format!(" ± {}", plot::sig(s, 2)))
                 ));
             }
-            intro.push_str(&html::parameter_table(&title, (&m.b, &m.b_std), (&m.f, &m.f_std)));
+            intro.push_str(&html::parameter_table(
+                &title,
+                (&m.fit.b, &m.evidence.b_std),
+                (&m.fit.f, &m.evidence.f_std),
+            ));
         }
     }
     intro.push_str(
@@ -378,9 +391,9 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
 
     // --- W and L1C over nF ---
     // With a delay grid, the grid figures are drawn at one delay: the picks' (else the first).
-    let delays: BTreeSet<u32> = s.rows.iter().map(|r| r.delay).collect();
-    let shown_delay = m2.or(m1).map(|p| p.model.delay).or_else(|| delays.first().copied());
-    let grid_rows: Vec<CellRow> = s.rows.iter().filter(|r| Some(r.delay) == shown_delay).cloned().collect();
+    let delays: BTreeSet<u32> = s.rows.iter().map(|r| r.key.delay).collect();
+    let shown_delay = m2.or(m1).map(|p| p.model.key.delay).or_else(|| delays.first().copied());
+    let grid_rows: Vec<CellRow> = s.rows.iter().filter(|r| Some(r.key.delay) == shown_delay).cloned().collect();
     let delay_note = (delays.len() > 1).then(|| {
         format!(
             "The table holds delays {}; the grid figures show delay {} (the picks').",
@@ -390,9 +403,9 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
     });
     let mut figs = Vec::new();
     let mut notes: Vec<String> = delay_note.iter().cloned().collect();
-    let first_k = grid_rows.iter().filter_map(|r| r.k_index).min();
+    let first_k = grid_rows.iter().filter_map(|r| r.key.k_index).min();
     for (curve, pick, file) in [(Curve::W, m1, "report-w-nf.svg"), (Curve::L1c, m2, "report-l1c-nf.svg")] {
-        match pick.map(|p| p.model.k_index).or(first_k) {
+        match pick.map(|p| p.model.k_index()).or(first_k) {
             Some(ki) => figs.push(figure(
                 folder,
                 file,
@@ -412,9 +425,9 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
     });
 
     // --- Heat maps and picks against k ---
-    let pick_ks: Vec<u32> = picks.iter().map(|p| p.model.k_index).collect();
+    let pick_ks: Vec<u32> = picks.iter().map(|p| p.model.k_index()).collect();
     let mut figs = Vec::new();
-    let n_k = s.ks.len().max(s.rows.iter().filter_map(|r| r.k_index).max().map_or(0, |m| m as usize + 1));
+    let n_k = s.ks.len().max(s.rows.iter().filter_map(|r| r.key.k_index).max().map_or(0, |m| m as usize + 1));
     for ki in heat_map_indices(n_k, &pick_ks) {
         let file = format!("{FIGURE_PREFIX}heat-k{ki:02}.svg");
         figs.push(figure(folder, &file, figures::heat_figure(&grid_rows, ki, s.k_of(ki), sel.basis, &picks, &file))?);
@@ -440,7 +453,13 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
                 let cov = s.covariance(p.model);
                 let m = p.model;
                 let gain = |w: f64| {
-                    crate::estimate::evidence::gain_std(&m.b, &m.f, m.delay as usize, cov.as_deref().unwrap_or(&[]), w)
+                    crate::estimate::evidence::gain_std(
+                        &m.fit.b,
+                        &m.fit.f,
+                        m.key.delay as usize,
+                        cov.as_deref().unwrap_or(&[]),
+                        w,
+                    )
                 };
                 let gain_band: Option<&dyn Fn(f64) -> (f64, f64)> = cov.is_some().then_some(&gain);
                 figs.push(figure(folder, &file, figures::bode_figure(&est, s.job.band_hz, *p, gain_band, &file))?);
@@ -471,12 +490,12 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
                 let (y_ls, y_h) = (s.output_of_row(ls, &s.est, zero), s.output_of_pick(p.model, &s.est, zero));
                 res_figs.push(figure(folder, file, figures::residual_figure(&s.est.y, (ls, &y_ls), (p, &y_h), file))?);
                 // The residual tests' correlation functions, on psi_g(e) and the input less u0.
-                let loss = crate::estimate::Loss::Huber { gamma: p.model.gamma };
+                let loss = crate::estimate::Loss::Huber { gamma: p.model.gamma() };
                 let r: Vec<f64> = s.est.y.iter().zip(&y_h).map(|(y, yh)| loss.psi(y - yh)).collect();
                 let u: Vec<f64> = s.est.u.iter().map(|v| v - s.u0).collect();
                 let (acf, ccf) = crate::estimate::evidence::correlation_functions(&r, &u);
                 let file = "report-resid-corr.svg";
-                let ps = (p.model.resid_white_p, p.model.resid_indep_p);
+                let ps = (p.model.evidence.resid_white_p, p.model.evidence.resid_indep_p);
                 res_figs.push(figure(folder, file, figures::resid_corr_figure(&acf, &ccf, r.len(), ps, p, file))?);
                 let records = [("estimation", Some(&s.est)), ("validation", s.val.as_ref())];
                 for (name, rec) in records {
@@ -496,7 +515,7 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
             }
             None => notes.push(format!(
                 "The table has no usable least-squares row of OE({},{}): no residual or output figure.",
-                p.model.nb, p.model.nf
+                p.model.key.nb, p.model.key.nf
             )),
         },
         None => notes.push("No pick, so no residuals or simulated outputs to show.".into()),
@@ -534,8 +553,8 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
 /// Facts about the sweep shown at the top of the page.
 fn header(s: &Sweep) -> html::Header {
     let j = &s.job;
-    let huber = s.rows.iter().filter(|r| r.method == Method::Huber).count();
-    let ls = s.rows.iter().filter(|r| r.method == Method::Ls).count();
+    let huber = s.rows.iter().filter(|r| r.key.kind == FitKind::Huber).count();
+    let ls = s.rows.iter().filter(|r| r.key.kind == FitKind::Ls).count();
     let record = |r: &Record| {
         format!(
             "<code>{}</code>: {} samples, u = {}, y = {}",

@@ -36,7 +36,7 @@ pub fn bode_figure(
     let mut phase = Vec::with_capacity(fine);
     let mut prev = 0.0;
     for j in 0..fine {
-        let (re, im) = freq_response(&m.b, &m.f, m.delay as usize, rad_per_fine * j as f64);
+        let (re, im) = freq_response(&m.fit.b, &m.fit.f, m.key.delay as usize, rad_per_fine * j as f64);
         mag.push(20.0 * re.hypot(im).log10());
         let p = im.atan2(re).to_degrees();
         // Unwrap along frequency: the model's phase is smooth, so each step is well below 180.
@@ -183,7 +183,7 @@ pub fn bode_figure(
          unreliable. {}The estimate's phase is drawn within ±180° of the model's. fit_band = {}.",
         pick.label(),
         band_text.map(|t| format!("Shaded: the band {t} of fit_band. ")).unwrap_or_default(),
-        m.fit_band.map(|v| format!("{v:.2} %")).unwrap_or("n/a (no band)".into()),
+        m.fit.fit_band.map(|v| format!("{v:.2} %")).unwrap_or("n/a (no band)".into()),
     );
     Ok(Figure { file: file.into(), alt: title_text, caption, svg })
 }

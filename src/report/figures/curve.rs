@@ -39,7 +39,7 @@ pub fn curve_figure(
         (Curve::W, false) => v,
         (Curve::L1c, _) => 100.0 * v,
     };
-    let nfs: Vec<u32> = curves.values().flatten().map(|r| r.nf).collect();
+    let nfs: Vec<u32> = curves.values().flatten().map(|r| r.key.nf).collect();
     let (nf_lo, nf_hi) = (nfs.iter().copied().min().unwrap_or(0), nfs.iter().copied().max().unwrap_or(1));
     let (ylo, yhi) = padded_range(all.iter().map(|v| shown(*v)), 0.08).unwrap_or((0.0, 1.0));
 
@@ -71,7 +71,7 @@ pub fn curve_figure(
         let mut entries = Vec::new();
         for (i, (nb, c)) in curves.iter().enumerate() {
             let colour = palette(i);
-            let pts: Vec<(f64, f64)> = c.iter().map(|r| (r.nf as f64, shown(raw(r)))).collect();
+            let pts: Vec<(f64, f64)> = c.iter().map(|r| (r.key.nf as f64, shown(raw(r)))).collect();
             chart.draw_series(LineSeries::new(pts.iter().copied(), colour.stroke_width(2)))?;
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, colour.filled())))?;
             let values: Vec<f64> = c.iter().map(|r| raw(r)).collect();
@@ -80,8 +80,8 @@ pub fn curve_figure(
             chart.draw_series(minima.iter().map(|&m| Circle::new(pts[m], 7, colour.stroke_width(2))))?;
             entries.push((Mark::Line { colour, width: 2, dashed: false }, format!("nB = {nb}")));
         }
-        if let Some(p) = pick.filter(|p| p.model.k_index == k_index) {
-            let at = (p.model.nf as f64, shown(raw_of(p.model, curve)));
+        if let Some(p) = pick.filter(|p| p.model.k_index() == k_index) {
+            let at = (p.model.key.nf as f64, shown(raw_of(p.model, curve)));
             chart.draw_series(std::iter::once(
                 EmptyElement::at(at)
                     + Circle::new((0, 0), 11, BLACK.stroke_width(3))
@@ -107,7 +107,7 @@ pub fn curve_figure(
 
 fn raw_of(c: &Candidate, curve: Curve) -> f64 {
     match curve {
-        Curve::W => c.criterion,
-        Curve::L1c => c.l1c,
+        Curve::W => c.criterion(),
+        Curve::L1c => c.l1c(),
     }
 }

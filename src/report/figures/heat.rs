@@ -3,7 +3,7 @@
 use super::super::plot::*;
 use super::{Figure, Picked};
 use crate::reduce::FitBasis;
-use crate::table::{CellRow, Method};
+use crate::table::CellRow;
 use plotters::prelude::*;
 
 /// Heat maps over (nB, nF) at one k: W, L1C and the fit of the selection's basis, with the picks
@@ -16,10 +16,9 @@ pub fn heat_figure(
     picks: &[Picked<'_>],
     file: &str,
 ) -> std::result::Result<Figure, String> {
-    let cells: Vec<&CellRow> =
-        rows.iter().filter(|r| r.method == Method::Huber && r.k_index == Some(k_index)).collect();
-    let nbs: Vec<u32> = cells.iter().map(|r| r.nb).collect();
-    let nfs: Vec<u32> = cells.iter().map(|r| r.nf).collect();
+    let cells: Vec<&CellRow> = rows.iter().filter(|r| r.is_huber() && r.key.k_index == Some(k_index)).collect();
+    let nbs: Vec<u32> = cells.iter().map(|r| r.key.nb).collect();
+    let nfs: Vec<u32> = cells.iter().map(|r| r.key.nf).collect();
     let (nb_lo, nb_hi) = (nbs.iter().copied().min().unwrap_or(1), nbs.iter().copied().max().unwrap_or(1));
     let (nf_lo, nf_hi) = (nfs.iter().copied().min().unwrap_or(0), nfs.iter().copied().max().unwrap_or(0));
     let (fit_name, fit_of) = (basis.column(), move |r: &CellRow| basis.score(r));
@@ -27,8 +26,8 @@ pub fn heat_figure(
     // (title, value of a row, colour-scale direction: true when low is good).
     type Value = Box<dyn Fn(&CellRow) -> Option<f64>>;
     let panels: [(String, Value, bool); 3] = [
-        ("W [(output unit)²]".to_string(), Box::new(|r: &CellRow| r.criterion), true),
-        ("L1C [%]".to_string(), Box::new(|r: &CellRow| r.l1c.map(|v| 100.0 * v)), true),
+        ("W [(output unit)²]".to_string(), Box::new(|r: &CellRow| r.fit.criterion), true),
+        ("L1C [%]".to_string(), Box::new(|r: &CellRow| r.fit.l1c.map(|v| 100.0 * v)), true),
         (format!("{fit_name} [%]"), Box::new(move |r: &CellRow| fit_of(r)), false),
     ];
     let n_rows = nb_hi - nb_lo + 1;
@@ -102,7 +101,7 @@ pub fn heat_figure(
                 .fold(0.0, f64::max);
             let labels = cell_w >= widest + 2.0 && cell_h >= 14.0;
             for r in &cells {
-                let (x, y) = (r.nf as f64, r.nb as f64);
+                let (x, y) = (r.key.nf as f64, r.key.nb as f64);
                 let corners = [(x - 0.5, y - 0.5), (x + 0.5, y + 0.5)];
                 match value(r).filter(|v| r.ok() && v.is_finite()) {
                     Some(v) => {
@@ -123,10 +122,10 @@ pub fn heat_figure(
                     }
                 }
             }
-            for (i, p) in picks.iter().enumerate().filter(|(_, p)| p.model.k_index == k_index) {
+            for (i, p) in picks.iter().enumerate().filter(|(_, p)| p.model.k_index() == k_index) {
                 // Nested outlines, so two picks of the same cell both show.
                 let inset = 0.5 - 0.12 * i as f64;
-                let (x, y) = (p.model.nf as f64, p.model.nb as f64);
+                let (x, y) = (p.model.key.nf as f64, p.model.key.nb as f64);
                 chart.draw_series(std::iter::once(Rectangle::new(
                     [(x - inset, y - inset), (x + inset, y + inset)],
                     p.colour.stroke_width(3),

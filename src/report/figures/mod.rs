@@ -43,6 +43,6 @@ pub struct Picked<'a> {
 impl Picked<'_> {
     /// "M1 OE(9,9), k = 0.05".
     pub fn label(&self) -> String {
-        format!("{} OE({},{}), k = {}", self.name, self.model.nb, self.model.nf, short(self.model.k))
+        format!("{} OE({},{}), k = {}", self.name, self.model.key.nb, self.model.key.nf, short(self.model.k()))
     }
 }

@@ -31,7 +31,7 @@ pub fn picks_by_k_figure(
     // select() on the rows of one k applies exactly the reducer's rules to that k alone.
     let mut per_k: Vec<KPicks> = Vec::new();
     for (i, &k) in ks.iter().enumerate() {
-        let subset: Vec<CellRow> = rows.iter().filter(|r| r.k_index == Some(i as u32)).cloned().collect();
+        let subset: Vec<CellRow> = rows.iter().filter(|r| r.key.k_index == Some(i as u32)).cloned().collect();
         let sel = select(&subset, &opts);
         let best = subset
             .iter()
@@ -48,7 +48,7 @@ pub fn picks_by_k_figure(
         (klo, khi) = (mid - 0.3, mid + 0.3);
     }
     let orders: Vec<f64> =
-        per_k.iter().flat_map(|p| p.m1.iter().chain(&p.m2).flat_map(|c| [c.nb as f64, c.nf as f64])).collect();
+        per_k.iter().flat_map(|p| p.m1.iter().chain(&p.m2).flat_map(|c| [c.key.nb as f64, c.key.nf as f64])).collect();
     let (olo, ohi) = padded_range(orders.iter().copied(), 0.1).unwrap_or((0.0, 10.0));
     let fits: Vec<f64> = per_k.iter().flat_map(|p| p.m1.iter().chain(&p.m2).map(|c| c.score).chain(p.best)).collect();
     let (flo, fhi) = padded_range(fits.iter().copied(), 0.1).unwrap_or((0.0, 100.0));
@@ -75,7 +75,7 @@ pub fn picks_by_k_figure(
             .draw()?;
         for (which, colour, width, dashed) in [(0, M1_COLOUR, 3, false), (1, M2_COLOUR, 2, true)] {
             let of = |p: &KPicks| {
-                if which == 0 { p.m1.as_ref() } else { p.m2.as_ref() }.map(|c| (p.x, c.nb as f64, c.nf as f64))
+                if which == 0 { p.m1.as_ref() } else { p.m2.as_ref() }.map(|c| (p.x, c.key.nb as f64, c.key.nf as f64))
             };
             let nb: Vec<(f64, f64)> = per_k.iter().filter_map(of).map(|(x, nb, _)| (x, nb)).collect();
             let nf: Vec<(f64, f64)> = per_k.iter().filter_map(of).map(|(x, _, nf)| (x, nf)).collect();
@@ -124,7 +124,7 @@ pub fn picks_by_k_figure(
         }
         for (pick, colour) in [(&selection.m1, M1_COLOUR), (&selection.m2, M2_COLOUR)] {
             if let Some(p) = pick {
-                let x = p.model.k.log10();
+                let x = p.model.k().log10();
                 chart.draw_series(DashedLineSeries::new([(x, flo), (x, fhi)], 2, 4, colour.stroke_width(1)))?;
             }
         }

@@ -36,8 +36,8 @@ pub fn residual_figure(
     let resid = |s: &[f64]| -> Vec<f64> { y.iter().zip(s).map(|(a, s)| a - s).collect() };
     let e_ls = resid(y_ls);
     let e_h = resid(y_h);
-    let gamma = m.gamma;
-    let sigma = ls.sigma.unwrap_or(f64::NAN);
+    let gamma = m.gamma();
+    let sigma = ls.fit.sigma.unwrap_or(f64::NAN);
     let share = |e: &[f64]| 100.0 * e.iter().filter(|v| v.abs() > gamma).count() as f64 / e.len() as f64;
     let n = e_ls.len() as f64;
     let mean_ls = e_ls.iter().sum::<f64>() / n;
@@ -55,7 +55,7 @@ pub fn residual_figure(
         let body = title(root, &title_text, 17.0)?;
         let (top, bottom) = body.split_vertically(body.dim_in_pixel().1 as i32 / 2);
         let panels = [
-            (&top, &e_ls, LS_COLOUR, format!("least-squares OE({},{}), σ = {}", ls.nb, ls.nf, sig(sigma, 3))),
+            (&top, &e_ls, LS_COLOUR, format!("least-squares OE({},{}), σ = {}", ls.key.nb, ls.key.nf, sig(sigma, 3))),
             (&bottom, &e_h, pick.colour, format!("Huber {}, γ = k σ = {}", pick.label(), sig(gamma, 3))),
         ];
         for (i, (area, e, colour, name)) in panels.into_iter().enumerate() {
@@ -127,9 +127,9 @@ pub fn residual_figure(
          own scale. Dashed red: ±γ; residuals beyond it form the L1 part of Huber's criterion (the pick's L1C \
          is {:.1} %). Residuals beyond the axis (the spikes) are counted in the legends.",
         e_ls.len(),
-        ls.nb,
-        ls.nf,
-        100.0 * m.l1c
+        ls.key.nb,
+        ls.key.nf,
+        100.0 * m.l1c()
     );
     Ok(Figure { file: file.into(), alt: title_text, caption, svg })
 }

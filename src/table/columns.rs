@@ -1,0 +1,324 @@
+//! The columns of the result table, listed once.
+//!
+//! Each [`Column`] names a column, its type, whether it may hold nulls, whether older tables
+//! may lack it, and how to read it from and write it into a [`CellRow`]. The Parquet writer
+//! and reader ([`crate::export::parquet`]), the row's JSON (the picks in `selection.json`) and
+//! README's column reference all follow this list, so they cannot disagree.
+
+use super::{CellRow, FitKind, Status};
+use serde::ser::{Serialize, SerializeMap, Serializer};
+
+/// The storage type of a column (Parquet: String, UInt32, Float64, Boolean, List(Float64)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ColumnType {
+    Str,
+    U32,
+    F64,
+    Bool,
+    ListF64,
+}
+
+/// One value of a column (`None`: null).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Value {
+    Str(Option<String>),
+    U32(Option<u32>),
+    F64(Option<f64>),
+    Bool(Option<bool>),
+    ListF64(Option<Vec<f64>>),
+}
+
+impl Value {
+    pub fn is_null(&self) -> bool {
+        match self {
+            Value::Str(v) => v.is_none(),
+            Value::U32(v) => v.is_none(),
+            Value::F64(v) => v.is_none(),
+            Value::Bool(v) => v.is_none(),
+            Value::ListF64(v) => v.is_none(),
+        }
+    }
+
+    /// A null of a column type.
+    pub fn null(ty: ColumnType) -> Value {
+        match ty {
+            ColumnType::Str => Value::Str(None),
+            ColumnType::U32 => Value::U32(None),
+            ColumnType::F64 => Value::F64(None),
+            ColumnType::Bool => Value::Bool(None),
+            ColumnType::ListF64 => Value::ListF64(None),
+        }
+    }
+
+    /// The value of a JSON document's field (as [`Value`]'s `Serialize` writes it). JSON has
+    /// no non-finite numbers: serde_json writes them as null, which reads back as NaN inside
+    /// a list and as a null elsewhere.
+    pub fn from_json(ty: ColumnType, v: &serde_json::Value) -> Result<Value, String> {
+        use serde_json::Value as J;
+        let bad = || format!("expected {ty:?}, got {v}");
+        if v.is_null() {
+            return Ok(Value::null(ty));
+        }
+        Ok(match ty {
+            ColumnType::Str => Value::Str(Some(v.as_str().ok_or_else(bad)?.to_string())),
+            ColumnType::U32 => Value::U32(Some(v.as_u64().and_then(|x| u32::try_from(x).ok()).ok_or_else(bad)?)),
+            ColumnType::F64 => Value::F64(Some(v.as_f64().ok_or_else(bad)?)),
+            ColumnType::Bool => Value::Bool(Some(v.as_bool().ok_or_else(bad)?)),
+            ColumnType::ListF64 => Value::ListF64(Some(
+                v.as_array()
+                    .ok_or_else(bad)?
+                    .iter()
+                    .map(|x| match x {
+                        J::Null => Ok(f64::NAN),
+                        x => x.as_f64().ok_or_else(bad),
+                    })
+                    .collect::<Result<_, _>>()?,
+            )),
+        })
+    }
+}
+
+impl Serialize for Value {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Value::Str(v) => v.serialize(s),
+            Value::U32(v) => v.serialize(s),
+            Value::F64(v) => v.serialize(s),
+            Value::Bool(v) => v.serialize(s),
+            Value::ListF64(v) => v.serialize(s),
+        }
+    }
+}
+
+/// A field type of [`CellRow`] and the column type that stores it. A field that is not an
+/// `Option` is a column without nulls.
+pub trait Cell: Sized {
+    const TYPE: ColumnType;
+    const NULLABLE: bool;
+    fn to_value(&self) -> Value;
+    /// `v` is of [`Cell::TYPE`], and not null unless [`Cell::NULLABLE`] (the reader checks).
+    fn from_value(v: Value) -> Result<Self, String>;
+}
+
+fn wrong(v: &Value) -> String {
+    format!("unexpected value {v:?}")
+}
+
+macro_rules! cell {
+    ($t:ty, $variant:ident) => {
+        impl Cell for $t {
+            const TYPE: ColumnType = ColumnType::$variant;
+            const NULLABLE: bool = false;
+            fn to_value(&self) -> Value {
+                Value::$variant(Some(self.clone()))
+            }
+            fn from_value(v: Value) -> Result<Self, String> {
+                match v {
+                    Value::$variant(Some(x)) => Ok(x),
+                    v => Err(wrong(&v)),
+                }
+            }
+        }
+        impl Cell for Option<$t> {
+            const TYPE: ColumnType = ColumnType::$variant;
+            const NULLABLE: bool = true;
+            fn to_value(&self) -> Value {
+                Value::$variant(self.clone())
+            }
+            fn from_value(v: Value) -> Result<Self, String> {
+                match v {
+                    Value::$variant(x) => Ok(x),
+                    v => Err(wrong(&v)),
+                }
+            }
+        }
+    };
+}
+
+cell!(String, Str);
+cell!(u32, U32);
+cell!(f64, F64);
+cell!(bool, Bool);
+cell!(Vec<f64>, ListF64);
+
+/// Enums stored as their names.
+macro_rules! named_cell {
+    ($t:ty) => {
+        impl Cell for $t {
+            const TYPE: ColumnType = ColumnType::Str;
+            const NULLABLE: bool = false;
+            fn to_value(&self) -> Value {
+                Value::Str(Some(self.as_str().to_string()))
+            }
+            fn from_value(v: Value) -> Result<Self, String> {
+                match v {
+                    Value::Str(Some(s)) => <$t>::parse(&s),
+                    v => Err(wrong(&v)),
+                }
+            }
+        }
+    };
+}
+
+named_cell!(FitKind);
+named_cell!(Status);
+
+/// One column of the table.
+pub struct Column {
+    pub name: &'static str,
+    pub ty: ColumnType,
+    /// May hold nulls (else a null is a malformed file).
+    pub nullable: bool,
+    /// Added after the first layout: tables of older versions lack it, and a reader then
+    /// takes the empty row's value (null, an empty list).
+    pub optional: bool,
+    /// The value is the same on every run of the same job (all but the wall time): such
+    /// columns make up a pick in `selection.json`.
+    pub reproducible: bool,
+    pub get: fn(&CellRow) -> Value,
+    pub set: fn(&mut CellRow, Value) -> Result<(), String>,
+}
+
+macro_rules! column {
+    (@ $name:literal, $t:ty, $optional:literal, $reproducible:literal, |$r:ident| $place:expr) => {
+        Column {
+            name: $name,
+            ty: <$t as Cell>::TYPE,
+            nullable: <$t as Cell>::NULLABLE,
+            optional: $optional,
+            reproducible: $reproducible,
+            get: |$r| Cell::to_value(&$place),
+            set: |$r, v| {
+                $place = <$t as Cell>::from_value(v)?;
+                Ok(())
+            },
+        }
+    };
+    ($name:literal, $t:ty, |$r:ident| $place:expr) => {
+        column!(@ $name, $t, false, true, |$r| $place)
+    };
+    (optional $name:literal, $t:ty, |$r:ident| $place:expr) => {
+        column!(@ $name, $t, true, true, |$r| $place)
+    };
+    (wall_time $name:literal, $t:ty, |$r:ident| $place:expr) => {
+        column!(@ $name, $t, false, false, |$r| $place)
+    };
+}
+
+/// The columns of `cells.parquet`, in table order (README "Columns of cells.parquet").
+pub const COLUMNS: &[Column] = &[
+    column!("method", FitKind, |r| r.key.kind),
+    column!("nb", u32, |r| r.key.nb),
+    column!("nf", u32, |r| r.key.nf),
+    column!("delay", u32, |r| r.key.delay),
+    column!("k_index", Option<u32>, |r| r.key.k_index),
+    column!("k", Option<f64>, |r| r.k),
+    column!("sigma", Option<f64>, |r| r.fit.sigma),
+    column!("gamma", Option<f64>, |r| r.fit.gamma),
+    column!("criterion", Option<f64>, |r| r.fit.criterion),
+    column!("l1c", Option<f64>, |r| r.fit.l1c),
+    column!("fit", Option<f64>, |r| r.fit.fit),
+    column!("fit_val", Option<f64>, |r| r.fit.fit_val),
+    column!("fit_band", Option<f64>, |r| r.fit.fit_band),
+    column!("iterations", Option<u32>, |r| r.fit.iterations),
+    column!("termination", Option<String>, |r| r.fit.termination),
+    column!("converged", bool, |r| r.fit.converged),
+    column!("status", Status, |r| r.status),
+    column!("reason", Option<String>, |r| r.reason),
+    column!("max_pole_radius", Option<f64>, |r| r.fit.max_pole_radius),
+    column!("reflections", Option<u32>, |r| r.fit.reflections),
+    column!("start", String, |r| r.fit.start),
+    column!(wall_time "seconds", f64, |r| r.fit.seconds),
+    column!("b", Vec<f64>, |r| r.fit.b),
+    column!("f", Vec<f64>, |r| r.fit.f),
+    column!(optional "offset", Option<f64>, |r| r.fit.offset),
+    column!(optional "b_std", Vec<f64>, |r| r.evidence.b_std),
+    column!(optional "f_std", Vec<f64>, |r| r.evidence.f_std),
+    column!(optional "offset_std", Option<f64>, |r| r.evidence.offset_std),
+    column!(optional "max_rel_std", Option<f64>, |r| r.evidence.max_rel_std),
+    column!(optional "resid_white_p", Option<f64>, |r| r.evidence.resid_white_p),
+    column!(optional "resid_indep_p", Option<f64>, |r| r.evidence.resid_indep_p),
+];
+
+/// The column called `name`.
+pub fn column(name: &str) -> Option<&'static Column> {
+    COLUMNS.iter().find(|c| c.name == name)
+}
+
+/// Set column `c` of `row` from `v`, checking nulls: the message names the column.
+pub fn set(row: &mut CellRow, c: &Column, v: Value) -> Result<(), String> {
+    if v.is_null() && !c.nullable {
+        return Err(format!("column `{}`: null in a column that must not have nulls", c.name));
+    }
+    (c.set)(row, v).map_err(|e| format!("column `{}`: {e}", c.name))
+}
+
+/// A row as a JSON object of its reproducible columns, in table order, with `extra` entries
+/// written right after the column `after` (how a pick carries its score).
+pub struct RowJson<'a> {
+    pub row: &'a CellRow,
+    pub extra: &'a [(&'a str, f64)],
+    pub after: &'a str,
+}
+
+impl Serialize for RowJson<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut map = s.serialize_map(None)?;
+        for c in COLUMNS.iter().filter(|c| c.reproducible) {
+            map.serialize_entry(c.name, &(c.get)(self.row))?;
+            if c.name == self.after {
+                for (name, v) in self.extra {
+                    map.serialize_entry(name, v)?;
+                }
+            }
+        }
+        map.end()
+    }
+}
+
+/// A row as JSON: every column, in table order.
+impl Serialize for CellRow {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut map = s.serialize_map(Some(COLUMNS.len()))?;
+        for c in COLUMNS {
+            map.serialize_entry(c.name, &(c.get)(self))?;
+        }
+        map.end()
+    }
+}
+
+/// A row from a JSON object written by [`RowJson`]: columns absent from it take the values of
+/// `base`; other keys are ignored.
+pub fn row_from_json(obj: &serde_json::Map<String, serde_json::Value>, mut base: CellRow) -> Result<CellRow, String> {
+    for c in COLUMNS.iter().filter(|c| c.reproducible) {
+        if let Some(v) = obj.get(c.name) {
+            set(&mut base, c, Value::from_json(c.ty, v).map_err(|e| format!("field `{}`: {e}", c.name))?)?;
+        }
+    }
+    Ok(base)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::table::RowKey;
+
+    #[test]
+    fn table_columns_have_unique_names_and_roundtrip_through_get_and_set() {
+        let mut names: Vec<&str> = COLUMNS.iter().map(|c| c.name).collect();
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), COLUMNS.len());
+        let key = RowKey { kind: FitKind::Huber, delay: 2, nb: 3, nf: 4, k_index: Some(5) };
+        let mut row = CellRow::failed(key, Some(0.5), "why".into());
+        row.fit.b = vec![1.0, 2.0];
+        row.evidence.max_rel_std = Some(f64::INFINITY);
+        let mut back = CellRow::empty(RowKey { kind: FitKind::Ls, delay: 0, nb: 0, nf: 0, k_index: None });
+        for c in COLUMNS {
+            let v = (c.get)(&row);
+            assert_eq!(std::mem::discriminant(&v), std::mem::discriminant(&Value::null(c.ty)), "{}", c.name);
+            set(&mut back, c, v).unwrap();
+        }
+        assert_eq!(back, row);
+    }
+}
