@@ -1,7 +1,10 @@
 //! Test hooks: fault injection and pause points, compiled only with the cargo feature
-//! `failpoints` (which the test suite turns on, see `Cargo.toml`). In every other build the
-//! functions here are empty and `OESWEEP_FAILPOINT` is never read, so a release binary cannot
-//! be made to fail by an environment variable.
+//! `failpoints` (which the test suite turns on, see `Cargo.toml`), and live only in a process
+//! that called [`enable`]: the `oesweep-testhooks` binary does, the `oesweep` binary never does.
+//! Cargo unifies the feature into the library that `cargo test` links into `oesweep` too, so
+//! the feature alone cannot keep a user's binary honest; the switch does. In a build without
+//! the feature the functions here are empty. Either way `oesweep` never reads
+//! `OESWEEP_FAILPOINT`, so a user's run cannot be made to fail by an environment variable.
 //!
 //! `OESWEEP_FAILPOINT` holds one of:
 //! - `panic:NB,NF,K_INDEX`: that Huber cell panics inside its worker, as a bug in the numerics
@@ -57,9 +60,15 @@ mod hooks {
         }
     }
 
+    /// Set once, first thing, by the `oesweep-testhooks` binary ([`super::enable`]).
+    pub(super) static ENABLED: AtomicBool = AtomicBool::new(false);
+
     pub(super) fn hook() -> Option<&'static Hook> {
         static HOOK: OnceLock<Option<Hook>> = OnceLock::new();
         HOOK.get_or_init(|| {
+            if !ENABLED.load(Ordering::SeqCst) {
+                return None;
+            }
             let v = std::env::var("OESWEEP_FAILPOINT").ok()?;
             let h = parse(&v);
             if h.is_none() {
@@ -109,6 +118,13 @@ mod hooks {
             std::thread::sleep(std::time::Duration::from_millis(2));
         }
     }
+}
+
+/// Switch the hooks on for this process: `OESWEEP_FAILPOINT` is read from now on. Only the
+/// `oesweep-testhooks` binary calls it, before anything else.
+#[cfg(feature = "failpoints")]
+pub fn enable() {
+    hooks::ENABLED.store(true, std::sync::atomic::Ordering::SeqCst);
 }
 
 /// Called by a worker before it fits Huber cell (nb, nf, k_index).

@@ -4,8 +4,9 @@
 //!
 //! The panic is injected with the `OESWEEP_FAILPOINT` hook (`panic:NB,NF,K_INDEX`), which
 //! makes exactly that Huber cell panic inside the worker, as a bug in the numerics would. The
-//! hook exists only in builds with the `failpoints` feature, which the test suite enables
-//! (src/failpoint.rs); `tests/release_binary.sh` checks that a release build ignores it.
+//! hook lives only in the `oesweep-testhooks` binary, which the test suite builds
+//! (src/failpoint.rs). The `oesweep` binary the same `cargo test` builds ignores it (checked
+//! here), and so does a user's build (`tests/release_binary.sh`).
 
 mod common;
 
@@ -31,7 +32,7 @@ fn a_panicking_cell_becomes_a_failed_row_and_the_sweep_goes_on() {
         "grid": {"nb": [1, 2], "nf": [1, 2], "k": [0.1, 1.0]}, "output": "out"
     });
     std::fs::write(d.join("job.json"), job.to_string()).unwrap();
-    let o = Command::new(bin)
+    let o = Command::new(env!("CARGO_BIN_EXE_oesweep-testhooks"))
         .args(["run", "job.json", "--quiet"])
         .env("OESWEEP_FAILPOINT", "panic:2,2,1")
         .current_dir(d)
@@ -51,4 +52,36 @@ fn a_panicking_cell_becomes_a_failed_row_and_the_sweep_goes_on() {
     assert!(d.join("out/selection.json").exists());
     let summary = String::from_utf8_lossy(&o.stdout);
     assert!(summary.contains("1 failed"), "{summary}");
+}
+
+/// After `cargo test` (which builds the library with the `failpoints` feature), the `oesweep`
+/// binary in the target folder is still a user's binary: the variable does nothing.
+#[test]
+fn the_oesweep_binary_ignores_the_failpoint_variable() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (b, f) = common::oe22();
+    std::fs::write(d.join("sys.json"), serde_json::json!({"b": b, "f": f, "delay": 1}).to_string()).unwrap();
+    let bin = env!("CARGO_BIN_EXE_oesweep");
+    let o = Command::new(bin)
+        .args(["simulate", "--system", "sys.json", "--out", "est.csv", "--n", "1500", "--noise-std", "0.05"])
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let job = serde_json::json!({
+        "name": "honest", "data": {"path": "est.csv", "ts": 1e-3},
+        "grid": {"nb": [1, 2], "nf": [1, 2], "k": [0.1, 1.0]}, "output": "out"
+    });
+    std::fs::write(d.join("job.json"), job.to_string()).unwrap();
+    let o = Command::new(bin)
+        .args(["run", "job.json", "--quiet"])
+        .env("OESWEEP_FAILPOINT", "panic:2,2,1")
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("(0 failed)"));
+    let rows = read_cells(&d.join("out/cells.parquet")).unwrap();
+    assert!(rows.iter().all(|r| r.ok()), "no failed row");
 }

@@ -30,9 +30,11 @@ fn oesweep(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_oesweep")).args(args).output().expect("binary runs")
 }
 
-/// `oesweep run JOB --threads 2 --quiet EXTRA...`, with `OESWEEP_FAILPOINT` when given.
+/// `oesweep run JOB --threads 2 --quiet EXTRA...`, with `OESWEEP_FAILPOINT` when given (the
+/// hooks live in the `oesweep-testhooks` build of the same command).
 fn spawn_run(job: &Path, extra: &[&str], failpoint: Option<&str>) -> Child {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_oesweep"));
+    let bin = if failpoint.is_some() { env!("CARGO_BIN_EXE_oesweep-testhooks") } else { env!("CARGO_BIN_EXE_oesweep") };
+    let mut cmd = Command::new(bin);
     cmd.args(["run", job.to_str().unwrap(), "--threads", "2", "--quiet"]).args(extra);
     if let Some(f) = failpoint {
         cmd.env("OESWEEP_FAILPOINT", f);

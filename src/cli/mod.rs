@@ -15,6 +15,25 @@ use crate::shard;
 use crate::simulate;
 use print::{describe_grid, print_fit_summary, print_layout, print_picks, print_report};
 
+/// The whole command line: parse the arguments, run the command, print an error as one line
+/// and map it to the exit code (0 success, 1 failure of the work itself, 2 bad input).
+pub fn main() -> std::process::ExitCode {
+    use clap::Parser;
+    match run(Cli::parse()) {
+        Ok(code) => std::process::ExitCode::from(code),
+        Err(e) => {
+            // One line, whatever the paths contain: control characters are escaped.
+            let msg: String = e
+                .to_string()
+                .chars()
+                .map(|c| if c.is_control() { c.escape_default().to_string() } else { c.to_string() })
+                .collect();
+            eprintln!("error: {msg}");
+            std::process::ExitCode::from(if e.is_bad_input() { 2 } else { 1 })
+        }
+    }
+}
+
 /// Run a parsed command; returns the process exit code.
 pub fn run(cli: Cli) -> Result<u8> {
     match cli.command {
