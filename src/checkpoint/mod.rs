@@ -100,7 +100,7 @@ mod tests {
     use crate::table::{CellRow, FitKind, RowKey};
     use serde_json::json;
     use std::path::Path;
-    use std::time::Duration;
+    use std::time::{Duration, Instant};
 
     #[test]
     fn checkpoint_part_names_roundtrip() {
@@ -161,7 +161,15 @@ mod tests {
                 "x".into(),
             ))
             .unwrap();
-        std::thread::sleep(Duration::from_millis(500));
+        // The part appears while the writer still runs (the sender is alive, the batch of 1000
+        // is far from full), so only the timer can have written it. The test waits for that
+        // state, however slow the machine; the bound only keeps a broken writer from hanging
+        // the suite and says nothing about the timer's precision.
+        let waited = Instant::now();
+        while list_parts(dir.path()).unwrap().is_empty() {
+            assert!(waited.elapsed() < Duration::from_secs(600), "the timer never wrote the part");
+            std::thread::sleep(Duration::from_millis(5));
+        }
         assert_eq!(list_parts(dir.path()).unwrap().len(), 1, "written before the end");
         assert_eq!(w.finish().parts, 1);
     }
