@@ -12,7 +12,7 @@
 //! and stops once its rows are saved; [`merge`] combines the shards.
 
 use crate::checkpoint::{self, Manifest, StopOnSignal, Writer};
-use crate::data::{self, ColumnRef, ReadOptions, Record};
+use crate::data::{self, ColumnRef, ReadOptions};
 use crate::error::{Error, Result};
 use crate::estimate::{self, HuberFit, InitialState, Judge, LsFit, Problem, SolverOptions, Workspace};
 use crate::export;
@@ -45,7 +45,7 @@ impl Prepared {
             est: &self.inputs.est,
             val: self.inputs.val.as_ref(),
             band: self.spectral.as_ref().map(|(s, b)| (s, &b[..])),
-            solver: self.job.job.solver.options(),
+            solver: self.job.job.solver.clone(),
             levels: self.inputs.levels,
             initial_state: self.job.job.initial_state,
         }
@@ -59,8 +59,8 @@ impl Prepared {
 
 /// Read and check a job file and every data file it names; nothing is written.
 pub fn prepare(path: &Path) -> Result<Prepared> {
-    let mut job = job::load(path)?;
-    let inputs = job::load_inputs(&mut job)?;
+    let job = job::load(path)?;
+    let inputs = job::load_inputs(&job)?;
     let spectral = match job.job.band_hz {
         Some([lo, hi]) => {
             let s = spectral::estimate(&inputs.est.u, &inputs.est.y, job.ts(), job.job.spectrum)
@@ -224,7 +224,7 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
         (false, Some(_)) => checkpoint::inspect(&parts, &manifest, &plan)?,
         (false, None) => checkpoint::inspect_all(&out, &manifest, &plan)?,
     };
-    checkpoint::open(&out, opts.shard, &manifest, &p.job.job, opts.force)?;
+    checkpoint::open(&out, opts.shard, &manifest, &p.job, opts.force)?;
     let (pairs, cells) = (plan.pairs.len(), plan.n_cells());
     let resumed_huber = existing.huber_rows();
     let resumed_rows = existing.rows.len();
@@ -293,65 +293,57 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
 
     // A whole run: the results, then the checkpoint has served (if deleting it fails, a rerun
     // finds every cell done and merges again), then the report.
-    let notes = Notes { levels: Some(p.inputs.levels), warnings: p.inputs.warnings.clone() };
-    let selection = write_results(&out, &p.job.job, &outcome.rows, &notes)?;
+    let selection = write_results(&out, &p.job, &outcome.rows, Some(&p.inputs))?;
     result.cleanup = checkpoint::remove(&out).err();
     let report = opts.report.then(|| crate::report::write_report(&out));
     result.end = RunEnd::Merged { selection: Box::new(selection), report };
     Ok(result)
 }
 
-/// `job.json` in the output folder: the normalised job and the program that ran it.
-#[derive(serde::Serialize)]
-struct JobAsRun<'a> {
-    oesweep_version: &'static str,
-    #[serde(flatten)]
-    job: &'a job::Job,
-}
-
-/// What selection.json says about the data besides the picks.
-struct Notes {
-    /// The levels taken out of the records (None: a merge that could not read the data).
-    levels: Option<data::Levels>,
-    warnings: Vec<String>,
-}
-
-impl Notes {
-    /// A merge's notes: the job's records read again (the folder does not keep them).
-    fn of_job(job: &job::Job) -> Notes {
-        let mut job = job.clone();
-        match job::read_records(&job.data, job.validation.as_mut()) {
-            Ok((est, _)) => Notes {
-                levels: Some(data::Levels::of(job.offset, &est)),
-                warnings: data::levels::offset_warning(job.offset, &est).into_iter().collect(),
-            },
-            Err(_) => Notes { levels: None, warnings: Vec::new() },
-        }
-    }
-}
-
 /// The result files of a complete (or `--partial`) table: `cells.parquet`, `selection.json`,
-/// `job.json`, replacing any report of an earlier table. Returns the picks.
-fn write_results(out: &Path, job: &job::Job, rows: &[CellRow], notes: &Notes) -> Result<Selection> {
+/// `job.json`, replacing any report of an earlier table. Returns the picks. `inputs` are the
+/// job's records as the run read them (None: a merge that could not read the data files): they
+/// give the levels and warnings selection.json keeps and the picks' covariance the report draws.
+fn write_results(out: &Path, job: &ValidJob, rows: &[CellRow], inputs: Option<&Inputs>) -> Result<Selection> {
+    let settings = &job.job.selection;
     let sel_opts = ReduceOptions {
-        basis: reduce::choose_basis(job.validation.is_some(), job.band_hz.is_some()),
-        min_tolerance: job.selection.min_tolerance,
-        fit_tolerance: job.selection.fit_tolerance,
+        basis: reduce::choose_basis(job.job.validation.is_some(), job.job.band_hz.is_some()),
+        min_tolerance: settings.min_tolerance,
+        fit_tolerance: settings.fit_tolerance,
     };
     let mut selection = reduce::select(rows, &sel_opts);
-    selection.offset = Some(job.offset);
-    selection.input_level = notes.levels.map(|l| l.u0);
-    selection.initial_state = Some(job.initial_state);
-    selection.warnings = notes.warnings.clone();
+    selection.offset = Some(job.job.offset);
+    selection.input_level = inputs.map(|i| i.levels.u0);
+    selection.initial_state = Some(job.job.initial_state);
+    selection.warnings = inputs.map(|i| i.warnings.clone()).unwrap_or_default();
+    if let Some(inputs) = inputs {
+        for pick in [selection.m1.as_mut(), selection.m2.as_mut()].into_iter().flatten() {
+            pick.covariance = covariance_of(&pick.model, inputs);
+        }
+    }
     // A report of the previous table would describe models this table may not have.
     crate::report::remove_report(out);
     export::parquet::write_cells(&out.join(export::CELLS_FILE), rows)?;
     export::json::write_json(&out.join(export::SELECTION_FILE), &selection)?;
-    export::json::write_json(
-        &out.join(export::JOB_FILE),
-        &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job },
-    )?;
+    job.write_as_run(&out.join(export::JOB_FILE))?;
     Ok(selection)
+}
+
+/// The robust covariance of a pick's parameters `[b, f(, c)]` on the estimation record (None
+/// when its Gram matrix is singular): the model as the run fitted it, levels taken out and the
+/// offset a parameter when the job estimated it (METHOD.md 10).
+fn covariance_of(c: &reduce::Candidate, inputs: &Inputs) -> Option<Vec<f64>> {
+    let prob = Problem {
+        u: &inputs.est.u,
+        y: &inputs.est.y,
+        nb: c.key.nb as usize,
+        nf: c.key.nf as usize,
+        delay: c.key.delay as usize,
+        offset: inputs.levels.mode.estimated(),
+    };
+    let theta = estimate::theta_of(&c.fit.b, &c.fit.f, inputs.levels.estimated_c(c.fit.offset));
+    let yhat = prob.simulate_vec(&theta);
+    estimate::evidence::covariance(&prob, &theta, estimate::Loss::Huber { gamma: c.gamma() }, &yhat)
 }
 
 /// How [`merge`] ended.
@@ -428,7 +420,7 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
     let merged = export::RESULT_FILES.iter().all(|f| out.join(f).is_file());
     if !merged || out.join(checkpoint::PARTS_DIR).exists() {
         let g = checkpoint::gather(out)?;
-        result.name = g.job.name.clone();
+        result.name = g.job.job.name.clone();
         result.duplicates = g.duplicates;
         result.missing = shard::missing(&g.plan, &g.rows);
         // The shards to rerun, when the folders say how the job was split.
@@ -446,7 +438,9 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
             result.end = MergeEnd::Incomplete;
             return Ok(result);
         }
-        let selection = write_results(out, &g.job, &g.rows, &Notes::of_job(&g.job))?;
+        // The records read again (the folder does not keep them) through the run's loader.
+        let inputs = job::load_inputs(&g.job).ok();
+        let selection = write_results(out, &g.job, &g.rows, inputs.as_ref())?;
         result.huber = crate::table::huber_rows(&g.rows);
         result.ls = g.rows.len() - result.huber;
         if result.missing.is_empty() {
@@ -548,26 +542,31 @@ impl FitRequest {
 /// Fit one model (see [`FitRequest`]).
 pub fn fit(req: &FitRequest) -> Result<FitReport> {
     req.check()?;
-    let opts = ReadOptions { rows: req.rows, ..ReadOptions::default() };
-    let mut est = data::read_record_with(&req.data, &req.u, &req.y, &opts)?;
-    data::check_for_model(&est, req.nb, req.nf, req.delay)?;
+    // The records as a job names them, read by the run's loader.
+    let data = job::DataSpec {
+        path: req.data.clone(),
+        u: Some(req.u.clone()),
+        y: Some(req.y.clone()),
+        rows: req.rows,
+        ..Default::default()
+    };
     let val_path = req.validation.clone().or_else(|| req.val_rows.map(|_| req.data.clone()));
-    let mut val: Option<Record> = match &val_path {
+    let validation = match &val_path {
         Some(p) => {
             let opts = ReadOptions { rows: req.val_rows, ..ReadOptions::default() };
-            let col = data::validation_column(p, req.val_y.as_ref(), &req.y, &opts)?;
-            let v = data::read_record_with(p, &req.u, &col, &opts)?;
-            data::check_for_model(&v, req.nb, req.nf, req.delay)?;
-            Some(v)
+            let y = data::validation_column(p, req.val_y.as_ref(), &req.y, &opts)?;
+            Some(job::DataSpec {
+                path: p.clone(),
+                u: Some(req.u.clone()),
+                y: Some(y),
+                rows: req.val_rows,
+                ..Default::default()
+            })
         }
         None => None,
     };
-    let levels = data::Levels::of(req.offset, &est);
-    let warnings: Vec<String> = data::levels::offset_warning(req.offset, &est).into_iter().collect();
-    levels.apply(&mut est);
-    if let Some(v) = val.as_mut() {
-        levels.apply(v);
-    }
+    let job::Inputs { est, val, levels, warnings } =
+        job::read_inputs(&data, validation.as_ref(), req.offset, (req.nb, req.nf, req.delay))?;
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
             let s = spectral::estimate(&est.u, &est.y, ts, req.spectrum)?;

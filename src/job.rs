@@ -8,7 +8,7 @@
 use crate::data::{self, ColumnRef, Delimiter, Header, Levels, Offset, ReadOptions, Record};
 use crate::error::{Error, Result};
 use crate::estimate::InitialState;
-use crate::estimate::{HuberHessian, Method, SolverOptions};
+use crate::estimate::SolverOptions;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -20,7 +20,7 @@ pub const MAX_ORDER: usize = 60;
 pub const DEFAULT_DELAY: usize = 1;
 
 /// A data record as named in the job file.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DataSpec {
     /// Data file (text, Parquet or MAT). Required for the estimation record; the validation
@@ -164,66 +164,6 @@ impl Default for SelectionSettings {
 /// Smallest `solver.explore_rows`: a shorter head says too little about lightly damped modes.
 const MIN_EXPLORE_ROWS: usize = 1000;
 
-/// The job's `solver` settings: the file's schema of [`SolverOptions`] (same fields, same
-/// defaults, unknown fields rejected). Validated in [`load`]; the numerics get the plain
-/// options from [`SolverSettings::options`].
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct SolverSettings {
-    pub max_iterations: usize,
-    pub ftol: f64,
-    pub xtol: f64,
-    pub gtol: f64,
-    pub lambda0: f64,
-    pub warm_lambda0: f64,
-    pub huber_hessian: HuberHessian,
-    pub huber_tol: f64,
-    pub huber_extra_starts: usize,
-    pub method: Method,
-    pub explore_rows: usize,
-    pub nested_starts: bool,
-}
-
-impl Default for SolverSettings {
-    fn default() -> Self {
-        let o = SolverOptions::default();
-        SolverSettings {
-            max_iterations: o.max_iterations,
-            ftol: o.ftol,
-            xtol: o.xtol,
-            gtol: o.gtol,
-            lambda0: o.lambda0,
-            warm_lambda0: o.warm_lambda0,
-            huber_hessian: o.huber_hessian,
-            huber_tol: o.huber_tol,
-            huber_extra_starts: o.huber_extra_starts,
-            method: o.method,
-            explore_rows: o.explore_rows,
-            nested_starts: o.nested_starts,
-        }
-    }
-}
-
-impl SolverSettings {
-    /// The solver's options (the settings are checked by [`load`]).
-    pub fn options(&self) -> SolverOptions {
-        SolverOptions {
-            max_iterations: self.max_iterations,
-            ftol: self.ftol,
-            xtol: self.xtol,
-            gtol: self.gtol,
-            lambda0: self.lambda0,
-            warm_lambda0: self.warm_lambda0,
-            huber_hessian: self.huber_hessian,
-            huber_tol: self.huber_tol,
-            huber_extra_starts: self.huber_extra_starts,
-            method: self.method,
-            explore_rows: self.explore_rows,
-            nested_starts: self.nested_starts,
-        }
-    }
-}
-
 /// The job file as written (before validation).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -248,7 +188,7 @@ pub struct Job {
     #[serde(default)]
     pub band_hz: Option<[f64; 2]>,
     #[serde(default)]
-    pub solver: SolverSettings,
+    pub solver: SolverOptions,
     #[serde(default)]
     pub start: StartStrategy,
     #[serde(default)]
@@ -257,10 +197,13 @@ pub struct Job {
     pub output: PathBuf,
 }
 
-/// A checked job: every field in range, paths resolved, k grid expanded.
+/// A checked job: every field in range, paths resolved, the validation record's output column
+/// and sampling period filled in, the k grid expanded. Built once ([`load`], or [`read_as_run`]
+/// for the job a run wrote) and never changed afterwards; the records are read beside it
+/// ([`load_inputs`]).
 #[derive(Clone, Debug)]
 pub struct ValidJob {
-    /// The job file.
+    /// The job file (or the job.json it was read back from).
     pub file: PathBuf,
     /// Normalised job (resolved paths and columns, k as an explicit list): written as job.json.
     pub job: Job,
@@ -270,7 +213,41 @@ pub struct ValidJob {
     pub ks: Vec<f64>,
 }
 
+/// `job.json` of a run: the normalised job and the program that ran it.
+#[derive(Serialize)]
+struct JobAsRun<'a> {
+    oesweep_version: &'static str,
+    #[serde(flatten)]
+    job: &'a Job,
+}
+
 impl ValidJob {
+    /// The grid of a normalised job (`grid.delay` set, k a list; [`validate`] made it so):
+    /// the one expansion of the grid into its values.
+    fn of_normalised(file: &Path, job: Job) -> ValidJob {
+        let range = |[a, b]: [usize; 2]| (a..=b).collect::<Vec<usize>>();
+        let delays = range(job.grid.delay.unwrap_or([job.delay.unwrap_or(DEFAULT_DELAY); 2]));
+        ValidJob {
+            file: file.to_path_buf(),
+            nb: range(job.grid.nb),
+            nf: range(job.grid.nf),
+            delays,
+            ks: k_values(&job.grid.k),
+            job,
+        }
+    }
+
+    /// Write the job as run (`job.json` of an output or a checkpoint folder), for
+    /// [`read_as_run`].
+    pub fn write_as_run(&self, path: &Path) -> Result<()> {
+        crate::export::json::write_json(path, &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job: &self.job })
+    }
+
+    /// The largest orders and delay of the grid: the records must be long enough for them.
+    pub fn largest(&self) -> (usize, usize, usize) {
+        (*self.nb.last().unwrap(), *self.nf.last().unwrap(), *self.delays.last().unwrap())
+    }
+
     pub fn n_pairs(&self) -> usize {
         self.nb.len() * self.nf.len() * self.delays.len()
     }
@@ -383,10 +360,53 @@ pub fn load(path: &Path) -> Result<ValidJob> {
     // message stays the one line the CLI promises.
     let job: Job = serde_json::from_str(text)
         .map_err(|e| Error::input(path, format!("invalid job: {}", data::one_line(&e.to_string()))))?;
-    validate(path, job)
+    let job = resolve_validation(validate(path, job)?)?;
+    Ok(ValidJob::of_normalised(path, job))
 }
 
-fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
+/// Read back the job a run wrote ([`ValidJob::write_as_run`]: `job.json` of an output or a
+/// checkpoint folder), for `oesweep merge` and the report: the same [`Job`] type, already
+/// normalised, so nothing is checked again but its shape. Files of versions before the
+/// `offset`, `initial_state` and `spectrum` fields ran the paper's model: absent, they read as
+/// "none", "zero" and "welch". Relative data paths (a hand-made file) are taken from `path`'s
+/// folder.
+pub fn read_as_run(path: &Path) -> Result<(ValidJob, Option<String>)> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+    let bad = |e: String| Error::input(path, format!("not the job.json `oesweep run` writes: {}", data::one_line(&e)));
+    let mut v: serde_json::Value = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
+    let obj = v.as_object_mut().ok_or_else(|| bad("not a JSON object".into()))?;
+    let version = obj.remove("oesweep_version").and_then(|v| v.as_str().map(str::to_string));
+    for (field, paper) in [("offset", "none"), ("initial_state", "zero"), ("spectrum", "welch")] {
+        obj.entry(field).or_insert_with(|| paper.into());
+    }
+    let mut job: Job = serde_json::from_value(v).map_err(|e| bad(e.to_string()))?;
+    let folder = path.parent().unwrap_or(Path::new("."));
+    let resolve = |p: &Path| if p.is_absolute() { p.to_path_buf() } else { folder.join(p) };
+    job.data.path = resolve(&job.data.path);
+    if let Some(v) = job.validation.as_mut() {
+        v.path = resolve(&v.path);
+    }
+    if job.data.ts.is_none_or(|ts| check_sampling_period(ts).is_err()) {
+        return Err(Error::input(path, "field 'data.ts': missing or not a positive number"));
+    }
+    Ok((ValidJob::of_normalised(path, job), version))
+}
+
+/// The validation record's output column (the file's `y0` when it has one,
+/// [`data::validation_column`]) and sampling period, filled in so that the checked job is
+/// complete. Reads the header of the validation file when its column is not given.
+fn resolve_validation(mut job: Job) -> Result<Job> {
+    let (data_y, ts) = (job.data.y_col(), job.data.ts);
+    if let Some(v) = job.validation.as_mut() {
+        v.y = Some(data::validation_column(&v.path, v.y.as_ref(), &data_y, &v.read_options())?);
+        v.ts = v.ts.or(ts);
+    }
+    Ok(job)
+}
+
+/// Check every field and normalise the job: paths resolved, defaults filled in, the delay as
+/// `grid.delay`, k as an explicit list.
+fn validate(path: &Path, mut job: Job) -> Result<Job> {
     // Messages quote paths and values from the job, which may hold control characters.
     let bad = |field: &str, msg: String| Error::input(path, data::one_line(&format!("field '{field}': {msg}")));
     // Absolute base: job.json in the output folder must locate the data from anywhere.
@@ -498,8 +518,6 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     if let Some(w) = sorted.windows(2).find(|w| w[0] == w[1]) {
         return Err(bad("grid.k", format!("k = {} appears twice", w[0])));
     }
-    let nb: Vec<usize> = (b0..=b1).collect();
-    let nf: Vec<usize> = (f0..=f1).collect();
     if let Some([lo, hi]) = job.band_hz {
         check_band(lo, hi, job.data.ts.unwrap()).map_err(|m| bad("band_hz", format!("[{lo}, {hi}]: {m}")))?;
     }
@@ -534,8 +552,8 @@ fn validate(path: &Path, mut job: Job) -> Result<ValidJob> {
     }
     job.output = resolve(&base, &job.output);
     check_output_folder(&job.output).map_err(|msg| bad("output", msg))?;
-    job.grid.k = KGrid::List(ks.clone());
-    Ok(ValidJob { file: path.to_path_buf(), job, nb, nf, delays: (d0..=d1).collect(), ks })
+    job.grid.k = KGrid::List(ks);
+    Ok(job)
 }
 
 /// Checks, without leaving a trace, that `out` is a folder `run` will be able to create or
@@ -598,17 +616,27 @@ pub struct Inputs {
 }
 
 /// Read the job's data files and check them against the largest orders of the grid.
-/// Fills in the validation output column actually used.
-pub fn load_inputs(vj: &mut ValidJob) -> Result<Inputs> {
-    let (nb_max, nf_max) = (*vj.nb.last().unwrap(), *vj.nf.last().unwrap());
-    let delay_max = *vj.delays.last().unwrap();
-    let (mut est, mut val) = read_records(&vj.job.data, vj.job.validation.as_mut())?;
+pub fn load_inputs(vj: &ValidJob) -> Result<Inputs> {
+    read_inputs(&vj.job.data, vj.job.validation.as_ref(), vj.job.offset, vj.largest())
+}
+
+/// The one loader of records, for a job and for `oesweep fit`: read the estimation and the
+/// validation record as their specs say (the validation output column resolved, see
+/// [`resolve_validation`]), check both against the largest model `(nb, nf, delay)`, and take
+/// out the levels of `offset` ([`Levels::of`], computed here only).
+pub fn read_inputs(
+    data: &DataSpec,
+    validation: Option<&DataSpec>,
+    offset: Offset,
+    (nb_max, nf_max, delay_max): (usize, usize, usize),
+) -> Result<Inputs> {
+    let (mut est, mut val) = read_records(data, validation)?;
     data::check_for_model(&est, nb_max, nf_max, delay_max)?;
     if let Some(rec) = &val {
         data::check_for_model(rec, nb_max, nf_max, delay_max)?;
     }
-    let levels = Levels::of(vj.job.offset, &est);
-    let warnings = data::levels::offset_warning(vj.job.offset, &est).into_iter().collect();
+    let levels = Levels::of(offset, &est);
+    let warnings = data::levels::offset_warning(offset, &est).into_iter().collect();
     levels.apply(&mut est);
     if let Some(v) = val.as_mut() {
         levels.apply(v);
@@ -616,22 +644,12 @@ pub fn load_inputs(vj: &mut ValidJob) -> Result<Inputs> {
     Ok(Inputs { est, val, levels, warnings })
 }
 
-/// The records a validated job names, read as the job says (the one home of that, for the
-/// run and the report); fills in the validation output column actually used and its
-/// sampling period.
-pub fn read_records(data: &DataSpec, validation: Option<&mut DataSpec>) -> Result<(Record, Option<Record>)> {
+/// The records of a checked job, as read from the files (levels not taken out): for the
+/// report's plots, which show the data in its own units.
+pub fn read_records(data: &DataSpec, validation: Option<&DataSpec>) -> Result<(Record, Option<Record>)> {
     let est = data::read_record_with(&data.path, &data.u_col(), &data.y_col(), &data.read_options())?;
     let val = match validation {
-        Some(v) => {
-            let opts = v.read_options();
-            let col = data::validation_column(&v.path, v.y.as_ref(), &data.y_col(), &opts)?;
-            let rec = data::read_record_with(&v.path, &v.u_col(), &col, &opts)?;
-            v.y = Some(col);
-            if let Some(ts) = data.ts {
-                v.ts.get_or_insert(ts);
-            }
-            Some(rec)
-        }
+        Some(v) => Some(data::read_record_with(&v.path, &v.u_col(), &v.y_col(), &v.read_options())?),
         None => None,
     };
     Ok((est, val))

@@ -210,6 +210,11 @@ pub struct Pick {
     pub rule: String,
     /// All scored candidates, best first.
     pub candidates: Vec<Candidate>,
+    /// The robust covariance of the model's parameters `[b, f(, c)]`, row-major (METHOD.md
+    /// 10), as the run computed it on the estimation record; absent when the run could not
+    /// (a merge without its data files, a singular Gram matrix) and in files of older versions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub covariance: Option<Vec<f64>>,
 }
 
 /// Result of the model choice (written as `selection.json`).
@@ -408,7 +413,7 @@ fn pick(minima: &[&CellRow], opts: &ReduceOptions, curve: Curve) -> Option<Pick>
         if candidates.len() == 1 { "minimum" } else { "minima" },
         opts.fit_tolerance,
     );
-    Some(Pick { model, rule, candidates })
+    Some(Pick { model, rule, candidates, covariance: None })
 }
 
 #[cfg(test)]

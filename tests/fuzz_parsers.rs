@@ -249,13 +249,13 @@ fn job_folder() -> (tempfile::TempDir, PathBuf) {
 
 fn check_job(path: &Path) {
     match job::load(path) {
-        Ok(mut vj) => {
+        Ok(vj) => {
             assert!(vj.n_cells() >= 1 && vj.n_cells() <= MAX_CELLS);
             assert!(vj.ks.iter().all(|k| k.is_finite() && *k > 0.0));
             let mut ks = vj.ks.clone();
             ks.sort_by(f64::total_cmp);
             assert!(ks.windows(2).all(|w| w[0] < w[1]), "duplicate k: {:?}", vj.ks);
-            if let Err(e) = job::load_inputs(&mut vj) {
+            if let Err(e) = job::load_inputs(&vj) {
                 checked_message(&e);
             }
         }
@@ -478,6 +478,6 @@ proptest! {
 fn base_job_is_valid() {
     let (_dir, p) = job_folder();
     fs::write(&p, serde_json::to_string(&base_job()).unwrap()).unwrap();
-    let mut vj = job::load(&p).unwrap();
-    job::load_inputs(&mut vj).unwrap();
+    let vj = job::load(&p).unwrap();
+    job::load_inputs(&vj).unwrap();
 }

@@ -5,7 +5,7 @@
 use super::{JOB_FILE, MANIFEST, Manifest, PARTS_DIR};
 use crate::error::{Error, Result};
 use crate::export;
-use crate::job::Job;
+use crate::job::ValidJob;
 use crate::shard::Shard;
 use std::path::{Path, PathBuf};
 
@@ -80,7 +80,7 @@ pub fn remove(out: &Path) -> Result<()> {
 /// a shard: its own folder only, since the other shards may be running); create the folder;
 /// delete temporary files of killed writers (its parts, and for a whole run the result files
 /// in `out`); write the manifest unless the folder already has it, and the job file.
-pub fn open(out: &Path, shard: Option<Shard>, manifest: &Manifest, job: &Job, force: bool) -> Result<()> {
+pub fn open(out: &Path, shard: Option<Shard>, manifest: &Manifest, job: &ValidJob, force: bool) -> Result<()> {
     let dir = folder(out, shard);
     match shard {
         None => {
@@ -108,7 +108,7 @@ pub fn open(out: &Path, shard: Option<Shard>, manifest: &Manifest, job: &Job, fo
     }
     // Rewritten each time: the paths are the latest run's (the manifest, checked above, says
     // the rest is the same job).
-    export::json::write_json(&dir.join(JOB_FILE), job)
+    job.write_as_run(&dir.join(JOB_FILE))
 }
 
 /// The shard checkpoint folders in `parts`, ordered by (N, I). Other entries are ignored.

@@ -7,7 +7,7 @@ use super::manifest::job_identity;
 use super::{JOB_FILE, MANIFEST, Manifest, PARTS_DIR};
 use crate::error::{Error, Result};
 use crate::export;
-use crate::job::Job;
+use crate::job::ValidJob;
 use crate::plan::Plan;
 use crate::shard::Shard;
 use crate::table::{CellRow, RowKey};
@@ -142,7 +142,7 @@ pub fn inspect_all(out: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> 
 #[derive(Debug)]
 pub struct Gathered {
     /// The normalised job, read from a checkpoint folder's [`JOB_FILE`].
-    pub job: Job,
+    pub job: ValidJob,
     /// Its plan.
     pub plan: Plan,
     /// One row per key found, sorted as in `cells.parquet`.
@@ -187,11 +187,11 @@ pub fn gather(out: &Path) -> Result<Gathered> {
         ));
     }
     let job_path = reference.join(JOB_FILE);
-    let job: Job = read_json_file(&job_path)?;
-    if job_identity(&job).1 != manifest.job_sha256 {
+    let (job, _) = crate::job::read_as_run(&job_path)?;
+    if job_identity(&job.job).1 != manifest.job_sha256 {
         return Err(Error::input(&job_path, "is not the job of the manifest next to it"));
     }
-    let plan = Plan::from_normalised(&job);
+    let plan = Plan::from_job(&job);
     let mut found: std::collections::HashMap<RowKey, (CellRow, usize)> = std::collections::HashMap::new();
     let (mut folders, mut duplicates) = (Vec::new(), 0);
     for (dir, shard) in dirs {

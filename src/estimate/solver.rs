@@ -48,9 +48,11 @@ pub enum Method {
     Separable,
 }
 
-/// Solver settings (the job file's schema of them is [`crate::job::SolverSettings`]). Defaults
-/// are tight enough to match a scipy trust-region fit to ~1e-8.
-#[derive(Clone, Debug, PartialEq)]
+/// Solver settings, also the job file's `solver` object (same names; absent fields take the
+/// defaults, unknown ones are refused; the ranges are checked by [`crate::job`]). Defaults are
+/// tight enough to match a scipy trust-region fit to ~1e-8.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct SolverOptions {
     /// Iteration cap (accepted + rejected steps count as one iteration each outer pass).
     pub max_iterations: usize,

@@ -52,20 +52,19 @@ mod figures;
 mod html;
 mod plot;
 
-use crate::data::{Levels, Offset, Record};
+use crate::data::Record;
 use crate::error::{Error, Result};
 use crate::estimate::InitialState;
 use crate::estimate::initial::model_output;
 use crate::export::parquet::read_cells;
 use crate::export::write_atomically;
 use crate::job::DataSpec;
-use crate::job::{KGrid, k_values};
+use crate::job::ValidJob;
 use crate::reduce::Curve;
 use crate::reduce::{Candidate, Selection};
 use crate::table::{CellRow, FitKind};
 use figures::{Figure, Picked};
 use html::{Section, esc};
-use serde::Deserialize;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
@@ -78,96 +77,28 @@ const OUTPUT_WINDOW: usize = 500;
 /// Largest number of k values with a heat-map figure (besides the picks' own k).
 const MAX_HEAT_MAPS: usize = 6;
 
-/// The parts of `job.json` the report uses. Deliberately tolerant (no `deny_unknown_fields`):
-/// `job.json` carries extra fields such as the program version.
-#[derive(Deserialize)]
-struct JobInfo {
-    name: String,
-    #[serde(default)]
-    oesweep_version: Option<String>,
-    data: DataSpec,
-    #[serde(default)]
-    validation: Option<DataSpec>,
-    grid: GridInfo,
-    #[serde(default)]
-    band_hz: Option<[f64; 2]>,
-    #[serde(default)]
-    start: Option<String>,
-    /// Absent in job.json of versions before these fields: the paper's model then.
-    #[serde(default = "paper_offset")]
-    offset: Offset,
-    #[serde(default = "paper_initial_state")]
-    initial_state: InitialState,
-    #[serde(default = "plain_welch")]
-    spectrum: crate::spectral::Method,
-}
-
-fn plain_welch() -> crate::spectral::Method {
-    crate::spectral::Method::Welch
-}
-
-fn paper_offset() -> Offset {
-    Offset::None
-}
-
-fn paper_initial_state() -> InitialState {
-    InitialState::Zero
-}
-
-#[derive(Deserialize)]
-struct GridInfo {
-    nb: [usize; 2],
-    nf: [usize; 2],
-    k: KGrid,
-}
-
-/// Everything the report is drawn from.
-struct Sweep {
+/// Everything the report is drawn from: what the run wrote, and the records for the plots.
+struct Review {
     folder: PathBuf,
     rows: Vec<CellRow>,
     selection: Selection,
-    job: JobInfo,
-    ks: Vec<f64>,
-    ts: f64,
+    /// The job as run (`job.json`) and the program version that ran it.
+    job: ValidJob,
+    version: Option<String>,
     est: Record,
     val: Option<Record>,
-    /// The input level the run took out of the records ([`crate::data::levels`]).
+    /// The input level the run took out of the records (`selection.json`'s `input_level`;
+    /// files of versions before it ran without levels).
     u0: f64,
-    initial_state: InitialState,
 }
 
-impl Sweep {
+impl Review {
     /// A table row's model output on a record, in the data's units.
     fn output_of_row(&self, r: &CellRow, rec: &Record, is: InitialState) -> Vec<f64> {
         model_output(&r.fit.b, &r.fit.f, r.key.delay as usize, r.fit.offset, self.u0, &rec.u, &rec.y, is)
     }
 
-    /// The robust covariance of a pick's parameters on the estimation record (None when its
-    /// Gram matrix is singular), the model rebuilt as the run fitted it: levels taken out, the
-    /// offset a parameter when the job estimated it.
-    fn covariance(&self, c: &Candidate) -> Option<Vec<f64>> {
-        let levels = Levels::of(self.job.offset, &self.est);
-        let mut rec = self.est.clone();
-        levels.apply(&mut rec);
-        let prob = crate::estimate::Problem {
-            u: &rec.u,
-            y: &rec.y,
-            nb: c.key.nb as usize,
-            nf: c.key.nf as usize,
-            delay: c.key.delay as usize,
-            offset: self.job.offset.estimated(),
-        };
-        let theta = crate::estimate::theta_of(&c.fit.b, &c.fit.f, levels.estimated_c(c.fit.offset));
-        let yhat = prob.simulate_vec(&theta);
-        crate::estimate::evidence::covariance(&prob, &theta, crate::estimate::Loss::Huber { gamma: c.gamma() }, &yhat)
-    }
-
-    /// A pick's model output on a record, in the data's units.
-    fn output_of_pick(&self, c: &Candidate, rec: &Record, is: InitialState) -> Vec<f64> {
-        model_output(&c.fit.b, &c.fit.f, c.key.delay as usize, c.fit.offset, self.u0, &rec.u, &rec.y, is)
-    }
-
-    fn load(folder: &Path) -> Result<Sweep> {
+    fn load(folder: &Path) -> Result<Review> {
         if !folder.is_dir() {
             return Err(Error::input(folder, "no such results folder (`oesweep run JOB` writes one)"));
         }
@@ -185,20 +116,7 @@ impl Sweep {
         let rows = read_cells(&folder.join(crate::export::CELLS_FILE))?;
         let selection: Selection = read_json(&folder.join(crate::export::SELECTION_FILE))?;
         let job_path = folder.join(crate::export::JOB_FILE);
-        let mut job: JobInfo = read_json(&job_path)?;
-        let ts = job
-            .data
-            .ts
-            .filter(|t| t.is_finite() && *t > 0.0)
-            .ok_or_else(|| Error::input(&job_path, "field 'data.ts': missing or not a positive number"))?;
-        let ks = k_values(&job.grid.k);
-
-        // job.json holds absolute paths; an older or hand-made one may be relative to the folder.
-        let resolve = |p: &Path| if p.is_absolute() { p.to_path_buf() } else { folder.join(p) };
-        job.data.path = resolve(&job.data.path);
-        if let Some(v) = job.validation.as_mut() {
-            v.path = resolve(&v.path);
-        }
+        let (job, version) = crate::job::read_as_run(&job_path)?;
         let gone = |spec: &DataSpec, what: &str| -> Result<()> {
             if spec.path.is_file() {
                 Ok(())
@@ -213,19 +131,22 @@ impl Sweep {
                 ))
             }
         };
-        gone(&job.data, "estimation")?;
-        if let Some(v) = &job.validation {
+        gone(&job.job.data, "estimation")?;
+        if let Some(v) = &job.job.validation {
             gone(v, "validation")?;
         }
-        let (est, val) = crate::job::read_records(&job.data, job.validation.as_mut())?;
-        let u0 = Levels::of(job.offset, &est).u0;
-        let initial_state = job.initial_state;
-        Ok(Sweep { folder: folder.to_path_buf(), rows, selection, job, ks, ts, est, val, u0, initial_state })
+        let (est, val) = crate::job::read_records(&job.job.data, job.job.validation.as_ref())?;
+        let u0 = selection.input_level.unwrap_or(0.0);
+        Ok(Review { folder: folder.to_path_buf(), rows, selection, job, version, est, val, u0 })
+    }
+
+    fn ts(&self) -> f64 {
+        self.job.ts()
     }
 
     /// k of a k index: from the job's grid, else from a row (a grid edited after the run).
     fn k_of(&self, k_index: u32) -> f64 {
-        self.ks.get(k_index as usize).copied().unwrap_or_else(|| {
+        self.job.ks.get(k_index as usize).copied().unwrap_or_else(|| {
             self.rows.iter().find(|r| r.key.k_index == Some(k_index)).and_then(|r| r.k).unwrap_or(f64::NAN)
         })
     }
@@ -257,7 +178,7 @@ fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
 
 /// Write `report.html` and its figures into `folder`; returns the page's path.
 pub fn write_report(folder: &Path) -> Result<PathBuf> {
-    let sweep = Sweep::load(folder)?;
+    let sweep = Review::load(folder)?;
     let sections = build_sections(&sweep)?;
 
     let mut written = BTreeSet::new();
@@ -310,7 +231,7 @@ fn heat_map_indices(n: usize, picks: &[u32]) -> Vec<u32> {
     v.into_iter().collect()
 }
 
-fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
+fn build_sections(s: &Review) -> Result<Vec<Section>> {
     let folder = &s.folder;
     let sel = &s.selection;
     let m1 = sel.m1.as_ref().map(|p| Picked { name: "M1", model: &p.model, colour: plot::M1_COLOUR });
@@ -427,13 +348,13 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
     // --- Heat maps and picks against k ---
     let pick_ks: Vec<u32> = picks.iter().map(|p| p.model.k_index()).collect();
     let mut figs = Vec::new();
-    let n_k = s.ks.len().max(s.rows.iter().filter_map(|r| r.key.k_index).max().map_or(0, |m| m as usize + 1));
+    let n_k = s.job.ks.len().max(s.rows.iter().filter_map(|r| r.key.k_index).max().map_or(0, |m| m as usize + 1));
     for ki in heat_map_indices(n_k, &pick_ks) {
         let file = format!("{FIGURE_PREFIX}heat-k{ki:02}.svg");
         figs.push(figure(folder, &file, figures::heat_figure(&grid_rows, ki, s.k_of(ki), sel.basis, &picks, &file))?);
     }
     let file = "report-picks-k.svg";
-    figs.push(figure(folder, file, figures::picks_by_k_figure(&grid_rows, &s.ks, sel, file))?);
+    figs.push(figure(folder, file, figures::picks_by_k_figure(&grid_rows, &s.job.ks, sel, file))?);
     let shown = if n_k <= MAX_HEAT_MAPS { "every k of the grid" } else { "k spread over the grid and the picks' k" };
     sections.push(Section {
         id: "maps",
@@ -446,11 +367,13 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
     // --- Bode ---
     let mut figs = Vec::new();
     let mut notes = Vec::new();
-    match crate::spectral::estimate(&s.est.u, &s.est.y, s.ts, s.job.spectrum) {
+    match crate::spectral::estimate(&s.est.u, &s.est.y, s.ts(), s.job.job.spectrum) {
         Ok(est) => {
             for p in &picks {
                 let file = format!("{FIGURE_PREFIX}bode-{}.svg", p.name.to_lowercase());
-                let cov = s.covariance(p.model);
+                // The covariance the run computed for this pick (selection.json).
+                let pick = if p.name == "M1" { &s.selection.m1 } else { &s.selection.m2 };
+                let cov = pick.as_ref().and_then(|q| q.covariance.clone());
                 let m = p.model;
                 let gain = |w: f64| {
                     crate::estimate::evidence::gain_std(
@@ -462,7 +385,7 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
                     )
                 };
                 let gain_band: Option<&dyn Fn(f64) -> (f64, f64)> = cov.is_some().then_some(&gain);
-                figs.push(figure(folder, &file, figures::bode_figure(&est, s.job.band_hz, *p, gain_band, &file))?);
+                figs.push(figure(folder, &file, figures::bode_figure(&est, s.job.job.band_hz, *p, gain_band, &file))?);
             }
         }
         Err(e) => notes.push(format!("No spectral estimate of the estimation record: {e}")),
@@ -487,7 +410,7 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
             Some(ls) => {
                 let file = "report-residuals.svg";
                 let zero = InitialState::Zero;
-                let (y_ls, y_h) = (s.output_of_row(ls, &s.est, zero), s.output_of_pick(p.model, &s.est, zero));
+                let (y_ls, y_h) = (s.output_of_row(ls, &s.est, zero), s.output_of_row(p.model, &s.est, zero));
                 res_figs.push(figure(folder, file, figures::residual_figure(&s.est.y, (ls, &y_ls), (p, &y_h), file))?);
                 // The residual tests' correlation functions, on psi_g(e) and the input less u0.
                 let loss = crate::estimate::Loss::Huber { gamma: p.model.gamma() };
@@ -502,13 +425,13 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
                     if let Some(rec) = rec {
                         let file = format!("{FIGURE_PREFIX}output-{name}.svg");
                         let (y_ls, y_h) = (
-                            s.output_of_row(ls, rec, s.initial_state),
-                            s.output_of_pick(p.model, rec, s.initial_state),
+                            s.output_of_row(ls, rec, s.job.job.initial_state),
+                            s.output_of_row(p.model, rec, s.job.job.initial_state),
                         );
                         out_figs.push(figure(
                             folder,
                             &file,
-                            figures::output_figure(&rec.y, s.ts, name, (ls, &y_ls), (p, &y_h), OUTPUT_WINDOW, &file),
+                            figures::output_figure(&rec.y, s.ts(), name, (ls, &y_ls), (p, &y_h), OUTPUT_WINDOW, &file),
                         )?);
                     }
                 }
@@ -551,8 +474,8 @@ fn build_sections(s: &Sweep) -> Result<Vec<Section>> {
 }
 
 /// Facts about the sweep shown at the top of the page.
-fn header(s: &Sweep) -> html::Header {
-    let j = &s.job;
+fn header(s: &Review) -> html::Header {
+    let j = &s.job.job;
     let huber = s.rows.iter().filter(|r| r.key.kind == FitKind::Huber).count();
     let ls = s.rows.iter().filter(|r| r.key.kind == FitKind::Ls).count();
     let record = |r: &Record| {
@@ -564,10 +487,13 @@ fn header(s: &Sweep) -> html::Header {
             esc(&r.y_name)
         )
     };
-    let (kmin, kmax) = s.ks.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), k| (a.min(*k), b.max(*k)));
+    let (kmin, kmax) = s.job.ks.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), k| (a.min(*k), b.max(*k)));
     let mut facts = vec![
         ("estimation record".to_string(), record(&s.est)),
-        ("sampling period".to_string(), format!("{} s (Nyquist {} Hz)", plot::short(s.ts), plot::short(0.5 / s.ts))),
+        (
+            "sampling period".to_string(),
+            format!("{} s (Nyquist {} Hz)", plot::short(s.ts()), plot::short(0.5 / s.ts())),
+        ),
     ];
     if let Some(v) = &s.val {
         facts.push(("validation record".into(), record(v)));
@@ -575,15 +501,15 @@ fn header(s: &Sweep) -> html::Header {
     facts.push((
         "grid".into(),
         format!(
-            "nB {}..{}, nF {}..{}, {} values of k from {} to {}{}",
+            "nB {}..{}, nF {}..{}, {} values of k from {} to {}, Huber fits start from <code>{}</code>",
             j.grid.nb[0],
             j.grid.nb[1],
             j.grid.nf[0],
             j.grid.nf[1],
-            s.ks.len(),
+            s.job.ks.len(),
             plot::short(kmin),
             plot::short(kmax),
-            j.start.as_ref().map(|st| format!(", Huber fits start from <code>{}</code>", esc(st))).unwrap_or_default()
+            j.start.as_str()
         ),
     ));
     facts.push((
@@ -596,7 +522,7 @@ fn header(s: &Sweep) -> html::Header {
             "offset <code>{}</code>, input level u0 = {} taken out; fits judged with initial state <code>{}</code>",
             j.offset.as_str(),
             plot::short(s.u0),
-            s.initial_state.as_str()
+            j.initial_state.as_str()
         ),
     ));
     for w in &s.selection.warnings {
@@ -615,12 +541,7 @@ fn header(s: &Sweep) -> html::Header {
             s.selection.fit_tolerance
         ),
     ));
-    html::Header {
-        name: j.name.clone(),
-        folder: s.folder.display().to_string(),
-        version: j.oesweep_version.clone(),
-        facts,
-    }
+    html::Header { name: j.name.clone(), folder: s.folder.display().to_string(), version: s.version.clone(), facts }
 }
 
 #[cfg(test)]
