@@ -10,7 +10,7 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use oesweep::data::read_record;
 use oesweep::estimate::SolverOptions;
 use oesweep::job::StartStrategy;
-use oesweep::plan::{Pair, Plan};
+use oesweep::plan::{Plan, Structure};
 use oesweep::progress::Progress;
 use oesweep::sweep::{self, Context, Control};
 use std::path::Path;
@@ -19,7 +19,8 @@ use std::time::Duration;
 fn sweep_throughput(c: &mut Criterion) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let est = read_record(&root.join("jobs/data/piezo_est.csv"), "u", "y").expect("bundled data");
-    let pairs: Vec<Pair> = (9..=10).flat_map(|nb| (8..=11).map(move |nf| Pair { nb, nf, delay: 1 })).collect();
+    let pairs: Vec<Structure> =
+        (9..=10).flat_map(|nb| (8..=11).map(move |nf| Structure { nb, nf, delay: 1 })).collect();
     let ks = vec![0.05, 0.0875, 0.15, 0.3, 0.6, 1.2];
     let plan = Plan { pairs, ks, start: StartStrategy::default(), ls_support: Vec::new() };
     let ctx = Context {

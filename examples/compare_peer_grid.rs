@@ -82,7 +82,7 @@ fn main() {
     // The least-squares phase as the sweep runs it: in the plan's waves of equal nB + nF, each
     // pair with the nested starts of its sub-models (METHOD.md 5.2, step 2).
     let plan = oesweep::plan::Plan {
-        pairs: pairs.iter().map(|((nb, nf), _)| oesweep::plan::Pair { nb: *nb, nf: *nf, delay: 1 }).collect(),
+        pairs: pairs.iter().map(|((nb, nf), _)| oesweep::plan::Structure { nb: *nb, nf: *nf, delay: 1 }).collect(),
         ks: Vec::new(),
         start: Default::default(),
         ls_support: Vec::new(),

@@ -474,7 +474,7 @@ pub struct FitRequest {
     /// The initial state `fit` and `fit_val` are computed with.
     pub initial_state: InitialState,
     /// The spectral estimate of `band`.
-    pub spectrum: spectral::Method,
+    pub spectrum: spectral::SpectrumMethod,
     pub nb: usize,
     pub nf: usize,
     pub k: f64,
@@ -619,7 +619,7 @@ pub struct SpectrumRequest {
     pub y: ColumnRef,
     pub rows: Option<[usize; 2]>,
     pub ts: f64,
-    pub method: spectral::Method,
+    pub method: spectral::SpectrumMethod,
 }
 
 /// Report of [`spectrum`] (`spectrum --json` prints it): per usable bin (the input has power
@@ -629,7 +629,7 @@ pub struct SpectrumRequest {
 pub struct SpectrumReport {
     pub data: PathBuf,
     pub n: usize,
-    pub method: spectral::Method,
+    pub method: spectral::SpectrumMethod,
     /// Output samples the robust method replaced.
     pub replaced: usize,
     pub segment: usize,

@@ -14,8 +14,11 @@ use std::path::{Path, PathBuf};
 
 /// Largest number of Huber cells a job may ask for.
 pub const MAX_CELLS: usize = 200_000;
-/// Largest order (nB or nF) a job may ask for.
+/// Largest order (nB or nF) a job may ask for: above any model of a SISO actuator worth
+/// fitting (the paper's grid ends at 15), and below the order up to which pole reflection
+/// works without allocation ([`crate::oe::STACK_ORDER`], checked at compile time).
 pub const MAX_ORDER: usize = 60;
+const _: () = assert!(MAX_ORDER <= crate::oe::STACK_ORDER);
 /// The delay of a job that names none.
 pub const DEFAULT_DELAY: usize = 1;
 
@@ -181,9 +184,9 @@ pub struct Job {
     /// The initial state the fits are judged with ([`InitialState`]).
     #[serde(default)]
     pub initial_state: InitialState,
-    /// The spectral estimate `fit_band` compares with ([`crate::spectral::Method`]).
+    /// The spectral estimate `fit_band` compares with ([`crate::spectral::SpectrumMethod`]).
     #[serde(default)]
-    pub spectrum: crate::spectral::Method,
+    pub spectrum: crate::spectral::SpectrumMethod,
     pub grid: Grid,
     #[serde(default)]
     pub band_hz: Option<[f64; 2]>,

@@ -320,8 +320,10 @@ pub fn reflect_unstable(f: &mut [f64]) -> bool {
     true
 }
 
-/// Orders up to which [`reflect_unstable`] allocates nothing.
-const STACK_ORDER: usize = 64;
+/// Orders up to which [`reflect_unstable`] allocates nothing (its root buffers live on the
+/// stack). A job's orders are capped below it ([`crate::job::MAX_ORDER`]) so that no fit of a
+/// sweep allocates in its iteration loop (tests/no_allocation.rs).
+pub const STACK_ORDER: usize = 64;
 
 /// [`reflect_unstable`] of an unstable, finite `f` in the given buffers (roots `z`, scratch
 /// `done`, coefficients `c` and `g`).

@@ -8,21 +8,22 @@
 
 use crate::job::{self, Job, StartStrategy, ValidJob};
 
-/// A model structure: orders (nB, nF) and input delay.
+/// A model structure: orders (nB, nF) and input delay (the plan calls its structures
+/// "pairs", after the order pairs of the paper's grid).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Pair {
+pub struct Structure {
     pub nb: usize,
     pub nf: usize,
     pub delay: usize,
 }
 
 /// All pairs of the given ranges, in plan order.
-fn pairs(nb: &[usize], nf: &[usize], delays: &[usize]) -> Vec<Pair> {
+fn pairs(nb: &[usize], nf: &[usize], delays: &[usize]) -> Vec<Structure> {
     let mut out = Vec::with_capacity(nb.len() * nf.len() * delays.len());
     for &delay in delays {
         for &b in nb {
             for &f in nf {
-                out.push(Pair { nb: b, nf: f, delay });
+                out.push(Structure { nb: b, nf: f, delay });
             }
         }
     }
@@ -30,12 +31,16 @@ fn pairs(nb: &[usize], nf: &[usize], delays: &[usize]) -> Vec<Pair> {
 }
 
 /// Position of each pair in `pairs`.
-fn pair_index(pairs: &[Pair]) -> std::collections::HashMap<(usize, usize, usize), usize> {
+fn pair_index(pairs: &[Structure]) -> std::collections::HashMap<(usize, usize, usize), usize> {
     pairs.iter().enumerate().map(|(i, p)| ((p.nb, p.nf, p.delay), i)).collect()
 }
 
 /// Indices of pair `i`'s sub-models (nB - 1, nF) and (nB, nF - 1), same delay, in `pairs`.
-fn sub_models(pairs: &[Pair], index: &std::collections::HashMap<(usize, usize, usize), usize>, i: usize) -> Vec<usize> {
+fn sub_models(
+    pairs: &[Structure],
+    index: &std::collections::HashMap<(usize, usize, usize), usize>,
+    i: usize,
+) -> Vec<usize> {
     let p = pairs[i];
     let mut out = Vec::new();
     if p.nb > 0 {
@@ -56,14 +61,14 @@ pub struct Cell {
 
 #[derive(Clone, Debug)]
 pub struct Plan {
-    pub pairs: Vec<Pair>,
+    pub pairs: Vec<Structure>,
     pub ks: Vec<f64>,
     pub start: StartStrategy,
     /// Pairs outside `pairs` whose least-squares phase the plan needs for the nested starts of
     /// its own (METHOD.md 5.2, step 2): their sub-models down the grid. Empty for a whole grid;
     /// a shard's plan ([`Plan::with_pairs`]) lists the sub-models another shard owns. They
     /// give no rows.
-    pub ls_support: Vec<Pair>,
+    pub ls_support: Vec<Structure>,
 }
 
 impl Plan {
@@ -97,7 +102,7 @@ impl Plan {
     /// plan: a cell depends on no other pair but through the least-squares phase's nested
     /// starts, and the sub-models those come from are kept as `ls_support`.
     pub fn with_pairs(&self, pairs: &[usize]) -> Plan {
-        let own: Vec<Pair> = pairs.iter().map(|&p| self.pairs[p]).collect();
+        let own: Vec<Structure> = pairs.iter().map(|&p| self.pairs[p]).collect();
         let all = self.ls_pairs();
         let index = pair_index(&all);
         // `pairs` index `self.pairs`, the head of `all`.
@@ -120,7 +125,7 @@ impl Plan {
     }
 
     /// The pairs whose least-squares phase the plan runs: `pairs`, then `ls_support`.
-    pub fn ls_pairs(&self) -> Vec<Pair> {
+    pub fn ls_pairs(&self) -> Vec<Structure> {
         self.pairs.iter().chain(&self.ls_support).copied().collect()
     }
 
@@ -152,7 +157,7 @@ impl Plan {
         (0..self.pairs.len()).flat_map(|p| (0..self.ks.len()).map(move |k| Cell { pair: p, k_index: k })).collect()
     }
 
-    /// Pair indices by decreasing estimated cost (nB + nF; ties: plan order), the order the
+    /// Structure indices by decreasing estimated cost (nB + nF; ties: plan order), the order the
     /// sweep hands pairs to its workers.
     pub fn pairs_by_cost(&self) -> Vec<usize> {
         let mut idx: Vec<usize> = (0..self.pairs.len()).collect();
@@ -167,8 +172,9 @@ impl Plan {
         idx
     }
 
-    /// k indices in continuation order: largest k first (closest to least squares), then down.
-    pub fn k_chain(&self) -> Vec<usize> {
+    /// k indices in the order of the `neighbour` and `best` strategies: largest k first (closest to
+    /// least squares), then down.
+    pub fn k_descending(&self) -> Vec<usize> {
         let mut idx: Vec<usize> = (0..self.ks.len()).collect();
         idx.sort_by(|&a, &b| self.ks[b].total_cmp(&self.ks[a]).then(a.cmp(&b)));
         idx

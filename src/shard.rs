@@ -201,10 +201,10 @@ pub fn missing(plan: &Plan, rows: &[crate::table::CellRow]) -> Missing {
 mod tests {
     use super::*;
     use crate::job::StartStrategy;
-    use crate::plan::Pair;
+    use crate::plan::Structure;
 
     fn plan(nb: std::ops::RangeInclusive<usize>, nf: std::ops::RangeInclusive<usize>, n_k: usize) -> Plan {
-        let pairs = nb.flat_map(|b| nf.clone().map(move |f| Pair { nb: b, nf: f, delay: 1 })).collect();
+        let pairs = nb.flat_map(|b| nf.clone().map(move |f| Structure { nb: b, nf: f, delay: 1 })).collect();
         Plan {
             pairs,
             ks: (1..=n_k).map(|i| i as f64 / 10.0).collect(),

@@ -24,7 +24,7 @@ use crate::data::{Levels, Record};
 use crate::estimate::chains::{CellOutcome, PairProblem, panic_message, walk_pair};
 use crate::estimate::{self, InitialState, Judge, Problem, SolverOptions, StartKind, Workspace};
 use crate::job::StartStrategy;
-use crate::plan::{Cell, Pair, Plan};
+use crate::plan::{Cell, Plan, Structure};
 use crate::progress::Progress;
 use crate::spectral::SpectralEstimate;
 use crate::table::{CellRow, RowKey, sort_rows};
@@ -52,7 +52,7 @@ impl Context<'_> {
         Judge { validation: self.val.map(|v| (&v.u[..], &v.y[..])), band: self.band, initial_state: self.initial_state }
     }
 
-    fn problem(&self, pair: &Pair) -> Problem<'_> {
+    fn problem(&self, pair: &Structure) -> Problem<'_> {
         Problem {
             u: &self.est.u,
             y: &self.est.y,
@@ -178,7 +178,7 @@ fn run_in_pool(
     // `nested` starts: (the pair's fit, whether it is a row computed in this run); None:
     // stopped before it.
     let own = plan.pairs.len();
-    let pair_ls = |pair: &crate::plan::Pair, p: usize, nested: &[Vec<f64>], ws: &mut Workspace| {
+    let pair_ls = |pair: &crate::plan::Structure, p: usize, nested: &[Vec<f64>], ws: &mut Workspace| {
         // Without nested starts no pair needs another's fit.
         if p >= own && !ctx.solver.nested_starts {
             return None;
@@ -281,7 +281,7 @@ fn run_in_pool(
                 .collect()
         }
         StartStrategy::Neighbour | StartStrategy::Best => {
-            let chain = plan.k_chain();
+            let chain = plan.k_descending();
             (0..plan.pairs.len())
                 .into_par_iter()
                 .map_init(Workspace::new, |ws, p| {

@@ -280,7 +280,8 @@ fn warm_damping_converges_to_a_minimum_in_fewer_iterations() {
     assert!(warm_its < cold_its, "warm {warm_its} iterations, cold {cold_its}");
 
     let gn = SolverOptions { lambda0: 0.0, ..opts.clone() };
-    let sol = solver::minimise(&prob, Loss::LeastSquares, &estimate::init::initial_guesses(&prob)[0], &gn, &mut ws);
+    let sol =
+        solver::minimise(&prob, Loss::LeastSquares, &estimate::initial_guess::initial_guesses(&prob)[0], &gn, &mut ws);
     assert!(sol.termination.converged(), "{:?}", sol.termination);
 }
 

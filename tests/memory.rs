@@ -8,7 +8,7 @@ mod common;
 
 use common::*;
 use oesweep::estimate::chains::{CellOutcome, walk_pair};
-use oesweep::estimate::{self, InitialState, Judge, Method, PairProblem, Problem, SolverOptions, Workspace};
+use oesweep::estimate::{self, InitialState, Judge, PairProblem, Problem, SolverMethod, SolverOptions, Workspace};
 use oesweep::oe;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -49,7 +49,7 @@ static GLOBAL: Tracking = Tracking;
 
 /// Peak bytes above the baseline while one worker estimates OE(4,4) with an offset on an
 /// N-sample record (validation N/4), in units of N-length f64 vectors.
-fn peak_vectors(n: usize, method: Method) -> f64 {
+fn peak_vectors(n: usize, method: SolverMethod) -> f64 {
     let (b, f) = (vec![0.4, 0.2, -0.1, 0.05], oe::poly_from_roots(&[(0.6, 0.5), (0.6, -0.5), (0.8, 0.0), (-0.3, 0.0)]));
     let u = binary_input(n + n / 4, 5, 1.0, 3);
     let y0 = oe::simulate_vec(&b, &f, 1, &u);
@@ -81,8 +81,8 @@ fn a_worker_holds_a_fixed_number_of_record_length_buffers() {
     // Once per thread and independent of N: faer's matrix products reserve a 64 MiB packing
     // buffer on a thread's first product (address space only; the pages a small product
     // touches are what counts in the resident set, ~70 MB for a 2-thread 131 072-sample run).
-    peak_vectors(1 << 12, Method::Lm);
-    for method in [Method::Lm, Method::Separable] {
+    peak_vectors(1 << 12, SolverMethod::Lm);
+    for method in [SolverMethod::Lm, SolverMethod::Separable] {
         let small = peak_vectors(1 << 14, method);
         let large = peak_vectors(1 << 17, method);
         eprintln!("{method:?}: peak {small:.1} N-vectors at N = 16384, {large:.1} at N = 131072");

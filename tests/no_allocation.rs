@@ -2,7 +2,7 @@
 //! allocation in the iteration loop; one workspace per worker"), pole reflections included:
 //! a global allocator counts the allocations of a second, identical minimisation.
 
-use oesweep::estimate::{Loss, Method, Problem, SolverOptions, Workspace, init, solver};
+use oesweep::estimate::{Loss, Problem, SolverMethod, SolverOptions, Workspace, initial_guess, solver};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -35,8 +35,8 @@ fn a_minimisation_with_pole_reflections_allocates_only_its_result() {
     // OE(12,12) from the ARX guess: the least-squares fit reflects unstable trial steps (the
     // piezo's lightly damped modes), and the Huber fit from there runs the weighted paths.
     let prob = Problem { u: &rec.u, y: &rec.y, nb: 12, nf: 12, delay: 1, offset: false };
-    let start = init::initial_guesses(&prob).remove(0);
-    for method in [Method::Lm, Method::Separable] {
+    let start = initial_guess::initial_guesses(&prob).remove(0);
+    for method in [SolverMethod::Lm, SolverMethod::Separable] {
         let opts = SolverOptions { method, ..SolverOptions::default() };
         let mut ws = Workspace::new();
         let run = |ws: &mut Workspace| {
@@ -46,7 +46,7 @@ fn a_minimisation_with_pole_reflections_allocates_only_its_result() {
             (ls, h)
         };
         let (ls, _) = run(&mut ws);
-        assert!(method == Method::Separable || ls.reflections > 0, "the test needs a fit that reflects poles");
+        assert!(method == SolverMethod::Separable || ls.reflections > 0, "the test needs a fit that reflects poles");
         let before = ALLOCATIONS.load(Ordering::Relaxed);
         let (ls2, h2) = run(&mut ws);
         let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;

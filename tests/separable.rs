@@ -8,11 +8,11 @@ mod common;
 use common::*;
 use oesweep::estimate::chains::{CellOutcome, PairProblem, walk_pair};
 use oesweep::estimate::normal::{Layout, NormalEquations};
-use oesweep::estimate::{self, Judge, Loss, Method, Problem, SolverOptions, Workspace, solver};
+use oesweep::estimate::{self, Judge, Loss, Problem, SolverMethod, SolverOptions, Workspace, solver};
 use oesweep::oe;
 
 fn separable() -> SolverOptions {
-    SolverOptions { method: Method::Separable, ..SolverOptions::default() }
+    SolverOptions { method: SolverMethod::Separable, ..SolverOptions::default() }
 }
 
 /// Noisy OE(3,3)-ish data with 5 % spikes (deterministic).

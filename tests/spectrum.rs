@@ -4,7 +4,7 @@
 
 mod common;
 
-use oesweep::spectral::{self, Method};
+use oesweep::spectral::{self, SpectrumMethod};
 use std::process::Command;
 
 /// Band fit of the true system against each estimate of a record with `share` spikes of 5..20
@@ -27,12 +27,12 @@ fn band_fits(share: f64, seed: u64) -> (f64, f64) {
     let coef = |k: &str| sys[k].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect::<Vec<f64>>();
     let (b, f, d) = (coef("b"), coef("f"), sys["delay"].as_u64().unwrap() as usize);
     let ts = 1e-4;
-    let fit = |m: Method| {
+    let fit = |m: SpectrumMethod| {
         let est = spectral::estimate(&rec.u, &rec.y, ts, m).unwrap();
         let bins = est.band(0.0, 1500.0);
         spectral::band_fit(&est, &bins, &b, &f, d).unwrap()
     };
-    (fit(Method::Robust), fit(Method::Welch))
+    (fit(SpectrumMethod::Robust), fit(SpectrumMethod::Welch))
 }
 
 #[test]

@@ -1,7 +1,7 @@
 //! The command line's arguments (clap).
 
 use crate::checkpoint;
-use crate::estimate::{HuberHessian, Method, SolverOptions};
+use crate::estimate::{HuberHessian, SolverMethod, SolverOptions};
 use crate::shard::Shard;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
@@ -257,18 +257,18 @@ impl From<HessianArg> for HuberHessian {
     }
 }
 
-/// `--method` ([`Method`]).
+/// `--method` ([`SolverMethod`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum MethodArg {
     Lm,
     Separable,
 }
 
-impl From<MethodArg> for Method {
+impl From<MethodArg> for SolverMethod {
     fn from(a: MethodArg) -> Self {
         match a {
-            MethodArg::Lm => Method::Lm,
-            MethodArg::Separable => Method::Separable,
+            MethodArg::Lm => SolverMethod::Lm,
+            MethodArg::Separable => SolverMethod::Separable,
         }
     }
 }
@@ -329,11 +329,11 @@ pub enum SpectrumArg {
     Welch,
 }
 
-impl From<SpectrumArg> for crate::spectral::Method {
+impl From<SpectrumArg> for crate::spectral::SpectrumMethod {
     fn from(a: SpectrumArg) -> Self {
         match a {
-            SpectrumArg::Robust => crate::spectral::Method::Robust,
-            SpectrumArg::Welch => crate::spectral::Method::Welch,
+            SpectrumArg::Robust => crate::spectral::SpectrumMethod::Robust,
+            SpectrumArg::Welch => crate::spectral::SpectrumMethod::Welch,
         }
     }
 }

@@ -4,9 +4,13 @@
 //! won and where it started ([`StartKind`]). The sweep only schedules pairs and turns the
 //! outcomes into rows.
 
+use super::fit::{HuberFit, Judge, LsFit, StartKind, huber_from_solution};
 use super::huber::Loss;
-use super::solver::{self, Problem, Solution, SolverOptions, Termination, Workspace};
-use super::{HuberFit, Judge, StartKind, exploration_head, huber_from_solution};
+use super::least_squares::exploration_head;
+use super::options::{SolverOptions, Termination};
+use super::problem::{Problem, Solution};
+use super::solver;
+use super::workspace::Workspace;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::Instant;
 
@@ -45,14 +49,23 @@ pub struct Chains {
 }
 
 impl Chains {
-    /// Relative criterion difference below which two chains count as one minimum.
+    /// Relative criterion difference below which two chains count as one minimum: two
+    /// solvers (or two starts) end on the same minimum within ~1e-6 (the Huber tolerance is
+    /// 1e-8 on steps that creep along ill-conditioned directions), while distinct local minima
+    /// of OE models differ from 1e-4 up (METHOD.md 8).
     pub const MERGE: f64 = 1e-6;
-    /// Iteration budget of a chain creeping along the stability boundary.
+    /// Iteration budget of a chain creeping along the stability boundary: enough to follow a
+    /// minimum that moves with k, too little to spend a cell's cost on a chain that loses.
     pub const CREEP_ITERATIONS: usize = 10;
-    /// A losing fit this long counts as creeping even when it converged (see [`Chains::step`]).
+    /// A losing fit this long counts as creeping even when it converged (see [`Chains::step`]):
+    /// on OE(12,13) of the paper grid one losing chain took 130-277 iterations at almost every
+    /// k and stopped just under the iteration cap, so a budget for capped fits alone never
+    /// applied; 50 is about three times a converging warm fit (issue 19, commit 1dbd529).
     pub const SLOW_ITERATIONS: usize = 50;
     /// A creeping chain is fitted only at the steps whose index (from 0, the first cell) is a
-    /// multiple of this, and holds its point in between (see [`Chains::step`]).
+    /// multiple of this, and holds its point in between (see [`Chains::step`]): creeping
+    /// iterations 10 419 -> 3 576 on the paper grid with the same quality against the peer;
+    /// a longer period loses the minima that move with k (issue 19, commit 0de824f).
     pub const CREEP_PERIOD: usize = 4;
 
     /// Chains from `theta_ls` (chain 0) and each of `alternatives`.
@@ -375,4 +388,35 @@ pub fn panic_message(e: Box<dyn std::any::Any + Send>) -> String {
     } else {
         "unknown panic".to_string()
     }
+}
+
+/// Step 3 from theta_LS and from each of `ls.alternatives`, keeping the lowest criterion (ties:
+/// the earlier start). Returns the fit and the index of the winning start (0 = theta_LS).
+/// Least-squares OE fits have several minima (METHOD.md 8) and the Huber fit inherits its
+/// start's basin; this multi-start is what keeps oesweep no worse than an independent solver.
+pub fn fit_huber_multi(
+    prob: &Problem,
+    ls: &LsFit,
+    k: f64,
+    judge: &Judge,
+    opts: &SolverOptions,
+    ws: &mut Workspace,
+) -> (HuberFit, usize) {
+    fit_huber_starts(prob, ls.sigma, k, &ls.theta(), &ls.alternatives, judge, opts, ws)
+}
+
+/// [`fit_huber_multi`] from its parts: `theta_ls` first, then `alternatives`.
+#[allow(clippy::too_many_arguments)]
+pub fn fit_huber_starts(
+    prob: &Problem,
+    sigma: f64,
+    k: f64,
+    theta_ls: &[f64],
+    alternatives: &[Vec<f64>],
+    judge: &Judge,
+    opts: &SolverOptions,
+    ws: &mut Workspace,
+) -> (HuberFit, usize) {
+    // One step of fresh chains is exactly this: every start once, the lowest W wins.
+    Chains::new(theta_ls, alternatives).step(&PairProblem { prob, sigma, judge, opts }, k, ws)
 }

@@ -31,7 +31,7 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::huber::Loss;
 use super::normal::NormalEquations;
-use super::solver::Problem;
+use super::problem::Problem;
 use crate::{kernels, oe};
 
 /// Largest lag of the residual tests.

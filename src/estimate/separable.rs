@@ -32,14 +32,19 @@
 //! (1.5 N-length); the rest is (nB + 1)^2-sized.
 
 use super::huber::Loss;
+use super::linalg::{cholesky, cholesky_solve};
 use super::normal::{Layout, NormalEquations};
-use super::solver::{Problem, cholesky, cholesky_solve};
+use super::problem::Problem;
 use crate::oe;
 
 /// Newton steps of a Huber inner problem at most (each warm-started from the linearised beta
-/// of the outer step).
+/// of the outer step). The inner problem changes only its L2 set between steps, which settles
+/// in 2-4 steps near a solution; the cap bounds the cost of an outer trial far from one, where
+/// the outer solver's acceptance test (W must decrease) guards the result anyway.
 pub const INNER_MAX: usize = 6;
-/// A Huber inner step lowering W by less than this (relative) ends the inner solve.
+/// A Huber inner step lowering W by less than this (relative) ends the inner solve: two
+/// orders below the solver's `ftol` (1e-10), so the inner solve never limits the outer
+/// convergence test.
 pub const INNER_FTOL: f64 = 1e-12;
 
 /// Small buffers of the inner problem, reused across calls.
@@ -204,7 +209,9 @@ pub fn project(
     crit
 }
 
-/// Step halvings of the Huber inner search before it gives up.
+/// Step halvings of the Huber inner search before it gives up: a step shortened 256-fold that
+/// still does not lower W points the wrong way (the L2 set changed under it), and the outer
+/// step's own damping is the better remedy.
 const SEARCH_HALVINGS: usize = 8;
 
 /// `V(y - yhat - s v)`.
@@ -221,6 +228,12 @@ fn shifted_criterion(loss: Loss, y: &[f64], yhat: &[f64], v: &[f64], s: f64) -> 
     (acc[0] + acc[1] + acc[2] + acc[3] + tail) / n
 }
 
+/// Ridges of [`solve_ridged`], relative to the largest diagonal entry: none first (the inner
+/// problem of [b, c] is a linear least-squares problem, well posed unless the L1 set swallows
+/// most rows), then from rounding level up to 1e-6, where the shrinkage of the linear
+/// parameters is still below the solver's tolerances' effect on the outer criterion.
+const INNER_RIDGES: [f64; 4] = [0.0, 1e-12, 1e-9, 1e-6];
+
 /// Solves `(h + ridge) x = g` by Cholesky with the smallest ridge (relative to the largest
 /// diagonal entry) that makes it positive definite; false when none does (a degenerate
 /// inner problem: every row in the L1 set, or a zero input).
@@ -232,7 +245,7 @@ fn solve_ridged(h: &[f64], a: &mut [f64], g: &[f64], x: &mut [f64], d: usize) ->
     if hmax <= 0.0 {
         return false;
     }
-    for ridge in [0.0, 1e-12, 1e-9, 1e-6] {
+    for ridge in INNER_RIDGES {
         a.copy_from_slice(h);
         for i in 0..d {
             a[i * d + i] += ridge * hmax;

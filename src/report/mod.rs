@@ -55,7 +55,7 @@ mod plot;
 use crate::data::Record;
 use crate::error::{Error, Result};
 use crate::estimate::InitialState;
-use crate::estimate::initial::model_output;
+use crate::estimate::initial_state::model_output;
 use crate::export::parquet::read_cells;
 use crate::export::write_atomically;
 use crate::job::DataSpec;

@@ -48,7 +48,7 @@ use std::f64::consts::PI;
 /// Which nonparametric estimate judges models (`fit_band`) and is drawn in the report.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
-pub enum Method {
+pub enum SpectrumMethod {
     /// Welch of the record with its output's spikes cleaned out first ([`clean`]).
     #[default]
     Robust,
@@ -56,21 +56,21 @@ pub enum Method {
     Welch,
 }
 
-impl Method {
+impl SpectrumMethod {
     pub fn as_str(self) -> &'static str {
         match self {
-            Method::Robust => "robust",
-            Method::Welch => "welch",
+            SpectrumMethod::Robust => "robust",
+            SpectrumMethod::Welch => "welch",
         }
     }
 }
 
 /// The spectral estimate of a record by `method` (default Welch settings): the one entry
 /// point for the sweep, `oesweep fit`, `oesweep spectrum` and the report.
-pub fn estimate(u: &[f64], y: &[f64], ts: f64, method: Method) -> Result<SpectralEstimate> {
+pub fn estimate(u: &[f64], y: &[f64], ts: f64, method: SpectrumMethod) -> Result<SpectralEstimate> {
     match method {
-        Method::Welch => welch(u, y, ts, &WelchOptions::default()),
-        Method::Robust => {
+        SpectrumMethod::Welch => welch(u, y, ts, &WelchOptions::default()),
+        SpectrumMethod::Robust => {
             // Checked before cleaning so that its messages are Welch's.
             if u.len() != y.len() || u.len() < MIN_SAMPLES {
                 return welch(u, y, ts, &WelchOptions::default());
@@ -108,7 +108,7 @@ pub struct SpectralEstimate {
     pub ts: f64,
     /// Number of segments averaged.
     pub segments: usize,
-    /// Output samples replaced by the cleaning of [`Method::Robust`] (0 for plain Welch).
+    /// Output samples replaced by the cleaning of [`SpectrumMethod::Robust`] (0 for plain Welch).
     pub replaced: usize,
 }
 

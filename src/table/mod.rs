@@ -16,7 +16,7 @@ pub mod columns;
 
 use crate::estimate::evidence::Evidence;
 use crate::estimate::{Assessment, HuberFit, LsFit, StartKind, Termination};
-use crate::plan::Pair;
+use crate::plan::Structure;
 pub use columns::{COLUMNS, Column, ColumnType, Value};
 
 /// Which fit a row holds (the `method` column).
@@ -87,7 +87,7 @@ pub struct RowKey {
 
 impl RowKey {
     /// Key of the Huber row of cell (pair, k_index).
-    pub fn huber(pair: &Pair, k_index: usize) -> Self {
+    pub fn huber(pair: &Structure, k_index: usize) -> Self {
         RowKey {
             kind: FitKind::Huber,
             delay: pair.delay as u32,
@@ -98,7 +98,7 @@ impl RowKey {
     }
 
     /// Key of the least-squares row of a pair.
-    pub fn ls(pair: &Pair) -> Self {
+    pub fn ls(pair: &Structure) -> Self {
         RowKey { kind: FitKind::Ls, delay: pair.delay as u32, nb: pair.nb as u32, nf: pair.nf as u32, k_index: None }
     }
 
@@ -227,7 +227,7 @@ impl CellRow {
 
     /// Row of a least-squares fit.
     pub fn from_ls(ls: &LsFit, seconds: f64) -> Self {
-        let pair = Pair { nb: ls.nb, nf: ls.nf, delay: ls.delay };
+        let pair = Structure { nb: ls.nb, nf: ls.nf, delay: ls.delay };
         let fitted = Fitted {
             criterion: ls.criterion,
             assessment: &ls.assessment,
@@ -245,7 +245,14 @@ impl CellRow {
 
     /// Row of a Huber fit of cell (`pair`, `k_index`) whose least-squares fit has scale
     /// `sigma` (a resumed sweep has the pair's `ls` row, not its [`LsFit`]).
-    pub fn from_huber(h: &HuberFit, pair: &Pair, sigma: f64, k_index: usize, start: StartKind, seconds: f64) -> Self {
+    pub fn from_huber(
+        h: &HuberFit,
+        pair: &Structure,
+        sigma: f64,
+        k_index: usize,
+        start: StartKind,
+        seconds: f64,
+    ) -> Self {
         let fitted = Fitted {
             criterion: h.criterion,
             assessment: &h.assessment,

@@ -9,7 +9,7 @@ use plotters::prelude::*;
 /// Measured output and the simulated outputs of the least-squares model and of a Huber pick over
 /// the first samples of a record, and their errors below (paper Fig. 14).
 #[allow(clippy::too_many_arguments)]
-/// `y_ls` and `y_h` are the two models' outputs on the record ([`crate::estimate::initial::model_output`]).
+/// `y_ls` and `y_h` are the two models' outputs on the record ([`crate::estimate::initial_state::model_output`]).
 pub fn output_figure(
     y: &[f64],
     ts: f64,

@@ -8,7 +8,7 @@
 //! stable by root reflection after each, and the candidate with the lowest least-squares
 //! output-error criterion is returned.
 
-use super::solver::Problem;
+use super::problem::Problem;
 use crate::oe;
 use faer::Mat;
 use faer::prelude::*;

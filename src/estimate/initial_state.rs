@@ -16,7 +16,7 @@
 //! `L` = where `h` has decayed to rounding), and the small system is solved by Cholesky with a
 //! tiny ridge: an inexact `x` only makes the judged fit lower, never flattering.
 
-use super::solver::{cholesky, cholesky_solve};
+use super::linalg::{cholesky, cholesky_solve};
 use crate::{kernels, oe};
 
 /// The initial state a fitted model is judged with (the job's `initial_state`).
@@ -119,15 +119,23 @@ pub fn add_free_response(f: &[f64], nb: usize, delay: usize, y: &[f64], yhat: &m
     }
 }
 
-/// Solves the symmetric positive semi-definite `g x = b` by Cholesky with a ridge of 1e-12 of
-/// the mean diagonal, raised a thousandfold until the factorisation succeeds.
+/// First ridge of [`solve_ridged`], relative to the mean diagonal: at rounding level, so a
+/// well-posed system is solved as it is.
+const RIDGE_FIRST: f64 = 1e-12;
+/// Ridges tried, each a thousandfold the last (1e-12 .. 1e3 of the mean diagonal): the free
+/// response's Gram matrix is singular when F has (near) common roots with the record's start,
+/// and the last ridge turns the solve into a shrunk estimate rather than a failure.
+const RIDGE_TRIES: usize = 6;
+
+/// Solves the symmetric positive semi-definite `g x = b` by Cholesky with a ridge of
+/// [`RIDGE_FIRST`] of the mean diagonal, raised a thousandfold until the factorisation succeeds.
 fn solve_ridged(g: &[f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
     let scale = (0..n).map(|i| g[i * n + i]).sum::<f64>() / n as f64;
     if !(scale.is_finite() && scale > 0.0) {
         return None;
     }
-    let mut ridge = 1e-12 * scale;
-    for _ in 0..6 {
+    let mut ridge = RIDGE_FIRST * scale;
+    for _ in 0..RIDGE_TRIES {
         let mut l = g.to_vec();
         for i in 0..n {
             l[i * n + i] += ridge;

@@ -1,0 +1,278 @@
+//! A fitted model and what it is judged by: the least-squares and Huber fit types, their
+//! assessment (fit %, pole radius, evidence), the start a fit came from, and the fits of one
+//! minimisation (METHOD.md 5-6).
+
+use super::evidence;
+use super::huber::{self, Loss};
+use super::initial_state::{self, InitialState};
+use super::options::{SolverOptions, Termination};
+use super::problem::{Problem, Solution};
+use super::solver;
+use super::workspace::Workspace;
+use crate::oe;
+use crate::spectral::SpectralEstimate;
+
+/// What a fitted model is judged against besides its own estimation record.
+#[derive(Clone, Copy, Default)]
+pub struct Judge<'a> {
+    /// Validation record (u, y): used only to judge, never to fit.
+    pub validation: Option<(&'a [f64], &'a [f64])>,
+    /// Spectral estimate of the estimation record and the bins of the fit band.
+    pub band: Option<(&'a SpectralEstimate, &'a [usize])>,
+    /// The initial state `fit` and `fit_val` are computed with.
+    pub initial_state: InitialState,
+}
+
+impl Judge<'_> {
+    /// The output the model is judged by on a record (u, y): its simulation from zero initial
+    /// conditions (`yhat0`, offset included), plus the fitted free response with
+    /// [`InitialState::Estimate`].
+    pub fn judged_output(&self, prob: &Problem, theta: &[f64], y: &[f64], yhat0: Vec<f64>) -> Vec<f64> {
+        let mut yhat = yhat0;
+        if self.initial_state == InitialState::Estimate {
+            let (b, f, _) = prob.split(theta);
+            initial_state::add_free_response(f, b.len(), prob.delay, y, &mut yhat);
+        }
+        yhat
+    }
+}
+
+/// Fit percentage `100 (1 - ||y - yhat|| / ||y - mean(y)||)`.
+pub fn fit_percent(y: &[f64], yhat: &[f64]) -> f64 {
+    let mean = y.iter().sum::<f64>() / y.len() as f64;
+    let num: f64 = y.iter().zip(yhat).map(|(a, b)| (a - b) * (a - b)).sum();
+    let den: f64 = y.iter().map(|a| (a - mean) * (a - mean)).sum();
+    100.0 * (1.0 - (num / den).sqrt())
+}
+
+/// Where a fit started: the table's `start` column ([`StartKind::as_str`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StartKind {
+    /// A least-squares fit from the ARX/IV initial guesses.
+    Init,
+    /// A Huber fit from the pair's least-squares starts: 0 = theta_LS, else an extra start.
+    Ls { start: usize },
+    /// A Huber fit from the solution at the neighbouring k.
+    Neighbour,
+    /// A cell of the `chains` walk, won by the chain begun at start `start` (0 = theta_LS).
+    Chain { start: usize },
+    /// A cell improved by the backward pass of the `chains` walk ([`ChainWalk`]).
+    ChainBack,
+}
+
+impl StartKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StartKind::Init => "init",
+            StartKind::Ls { start: 0 } => "ls",
+            StartKind::Ls { .. } => "ls_alt",
+            StartKind::Neighbour => "neighbour",
+            StartKind::Chain { start: 0 } => "chain_ls",
+            StartKind::Chain { .. } => "chain_alt",
+            StartKind::ChainBack => "chain_back",
+        }
+    }
+}
+
+/// Quantities every fitted model reports.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Assessment {
+    /// Fit % on the estimation record.
+    pub fit: f64,
+    /// Fit % on the validation record (None without one).
+    pub fit_val: Option<f64>,
+    /// Fit % of the frequency response against the spectral estimate in the band.
+    pub fit_band: Option<f64>,
+    pub max_pole_radius: f64,
+    /// Parameter standard deviations and residual tests (METHOD.md 10).
+    #[serde(flatten)]
+    pub evidence: evidence::Evidence,
+}
+
+/// The assessment of the solution `theta` whose output and Jacobian signals the workspace
+/// holds (the solver's last, or [`Workspace::resimulate`]).
+fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: &Judge) -> Assessment {
+    let yhat = &ws.yhat[..];
+    let (b, f, _) = prob.split(theta);
+    let fit_val = judge.validation.map(|(u, y)| {
+        let val = Problem { u, y, ..*prob };
+        fit_percent(y, &judge.judged_output(&val, theta, y, val.simulate_vec(theta)))
+    });
+    let fit = fit_percent(prob.y, &judge.judged_output(prob, theta, prob.y, yhat.to_vec()));
+    let fit_band = judge.band.and_then(|(est, bins)| crate::spectral::band_fit(est, bins, b, f, prob.delay));
+    Assessment {
+        fit,
+        fit_val: fit_val.filter(|v| v.is_finite()),
+        fit_band: fit_band.filter(|v| v.is_finite()),
+        max_pole_radius: oe::max_pole_radius(f),
+        evidence: evidence::evidence(prob, theta, loss, &ws.yhat, &ws.xu, &ws.xy, &mut ws.evidence),
+    }
+}
+
+/// The least-squares (L2) fit of an order pair and the scale sigma it provides.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct LsFit {
+    pub nb: usize,
+    pub nf: usize,
+    pub delay: usize,
+    /// `(1/N) sum e^2 / 2`.
+    pub criterion: f64,
+    /// Standard deviation of the residuals (ddof = 0).
+    pub sigma: f64,
+    #[serde(flatten)]
+    pub assessment: Assessment,
+    pub iterations: usize,
+    pub termination: Termination,
+    pub reflections: usize,
+    pub b: Vec<f64>,
+    pub f: Vec<f64>,
+    /// The estimated output offset c (None when the model has none, [`Problem::offset`]).
+    pub offset: Option<f64>,
+    /// Further starts for the Huber phase (see [`fit_huber_multi`]): the least-squares
+    /// solutions reached from the other initial guesses, and theta_LS with its poles pulled
+    /// to radius 0.99 when it ended on the stability boundary. Deterministic, so a resumed
+    /// sweep recomputes them identically; not part of the result table.
+    #[serde(skip)]
+    pub alternatives: Vec<Vec<f64>>,
+}
+
+/// `theta` of the sub-model (`nb`, `nf`) of `prob`'s structure (same delay and offset mode) as
+/// `prob`'s parameters: the same model, with zero trailing coefficients in B and F.
+pub fn embed(theta: &[f64], nb: usize, nf: usize, prob: &Problem) -> Vec<f64> {
+    assert!(nb <= prob.nb && nf <= prob.nf, "OE({nb},{nf}) is no sub-model of OE({},{})", prob.nb, prob.nf);
+    assert_eq!(theta.len(), nb + nf + usize::from(prob.offset));
+    let mut out = vec![0.0; prob.dim()];
+    out[..nb].copy_from_slice(&theta[..nb]);
+    out[prob.nb..prob.nb + nf].copy_from_slice(&theta[nb..nb + nf]);
+    if prob.offset {
+        out[prob.nb + prob.nf] = theta[nb + nf];
+    }
+    out
+}
+
+/// `[b, f]`, or `[b, f, c]` with an offset: the solver's parameter vector.
+pub fn theta_of(b: &[f64], f: &[f64], offset: Option<f64>) -> Vec<f64> {
+    b.iter().chain(f).chain(offset.as_ref()).copied().collect()
+}
+
+impl LsFit {
+    pub fn theta(&self) -> Vec<f64> {
+        theta_of(&self.b, &self.f, self.offset)
+    }
+    /// True when the numbers are usable (finite criterion and parameters).
+    pub fn ok(&self) -> bool {
+        self.termination.usable(self.sigma)
+    }
+}
+
+/// A Huber fit at one tuning constant k.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct HuberFit {
+    pub k: f64,
+    pub gamma: f64,
+    /// `W_{N,gamma}` at the solution.
+    pub criterion: f64,
+    /// Share of residuals beyond gamma.
+    pub l1c: f64,
+    #[serde(flatten)]
+    pub assessment: Assessment,
+    pub iterations: usize,
+    pub termination: Termination,
+    pub reflections: usize,
+    pub b: Vec<f64>,
+    pub f: Vec<f64>,
+    /// The estimated output offset c (None when the model has none).
+    pub offset: Option<f64>,
+}
+
+impl HuberFit {
+    pub fn theta(&self) -> Vec<f64> {
+        theta_of(&self.b, &self.f, self.offset)
+    }
+}
+
+/// A [`HuberFit`] from a finished minimisation. `resimulate`: the workspace does not hold this
+/// solution's simulation (another fit ran after it).
+pub(crate) fn huber_from_solution(
+    prob: &Problem,
+    sigma: f64,
+    k: f64,
+    sol: &Solution,
+    judge: &Judge,
+    ws: &mut Workspace,
+    resimulate: bool,
+) -> HuberFit {
+    let gamma = k * sigma;
+    if resimulate {
+        ws.resimulate(prob, &sol.theta);
+    }
+    let (b, f, _) = prob.split(&sol.theta);
+    HuberFit {
+        k,
+        gamma,
+        criterion: sol.criterion,
+        l1c: huber::l1_contribution(prob.y, ws.yhat(), gamma),
+        assessment: assess(prob, &sol.theta, Loss::Huber { gamma }, ws, judge),
+        iterations: sol.iterations,
+        termination: sol.termination,
+        reflections: sol.reflections,
+        b: b.to_vec(),
+        f: f.to_vec(),
+        offset: prob.offset.then(|| prob.split(&sol.theta).2),
+    }
+}
+
+pub(super) fn ls_from_solution(
+    prob: &Problem,
+    sol: Solution,
+    judge: &Judge,
+    _opts: &SolverOptions,
+    ws: &mut Workspace,
+) -> LsFit {
+    // The workspace holds the simulation of the last minimisation, not necessarily this one.
+    ws.resimulate(prob, &sol.theta);
+    ls_fit(prob, sol, judge, ws)
+}
+
+/// Step 2 from a given start.
+pub fn fit_ls_from(prob: &Problem, theta0: &[f64], judge: &Judge, opts: &SolverOptions, ws: &mut Workspace) -> LsFit {
+    let sol = solver::minimise(prob, Loss::LeastSquares, theta0, opts, ws);
+    ls_fit(prob, sol, judge, ws)
+}
+
+fn ls_fit(prob: &Problem, sol: Solution, judge: &Judge, ws: &mut Workspace) -> LsFit {
+    let yhat = ws.yhat();
+    let n = prob.n() as f64;
+    let mean_e = prob.y.iter().zip(yhat).map(|(a, b)| a - b).sum::<f64>() / n;
+    let var = prob.y.iter().zip(yhat).map(|(a, b)| (a - b - mean_e).powi(2)).sum::<f64>() / n;
+    let (b, f, c) = prob.split(&sol.theta);
+    LsFit {
+        nb: prob.nb,
+        nf: prob.nf,
+        delay: prob.delay,
+        criterion: sol.criterion,
+        sigma: var.sqrt(),
+        assessment: assess(prob, &sol.theta, Loss::LeastSquares, ws, judge),
+        iterations: sol.iterations,
+        termination: sol.termination,
+        reflections: sol.reflections,
+        b: b.to_vec(),
+        f: f.to_vec(),
+        offset: prob.offset.then_some(c),
+        alternatives: Vec::new(),
+    }
+}
+
+/// Step 3: Huber fit with gamma = k sigma from `start` (normally theta_LS).
+pub fn fit_huber(
+    prob: &Problem,
+    sigma: f64,
+    k: f64,
+    start: &[f64],
+    judge: &Judge,
+    opts: &SolverOptions,
+    ws: &mut Workspace,
+) -> HuberFit {
+    let sol = solver::minimise(prob, Loss::Huber { gamma: k * sigma }, start, &opts.huber(), ws);
+    huber_from_solution(prob, sigma, k, &sol, judge, ws, false)
+}

@@ -1,0 +1,178 @@
+//! Steps 1-2 of a cell (METHOD.md 5.2): the least-squares fit of an order pair from its initial
+//! guesses, robust detours and nested starts, and the scale sigma it gives the Huber fits.
+
+use super::fit::{Judge, LsFit, ls_from_solution};
+use super::huber::Loss;
+use super::initial_guess;
+use super::options::SolverOptions;
+use super::problem::{Problem, Solution};
+use super::solver;
+use super::workspace::Workspace;
+
+/// Steps 1-2: least-squares prediction-error fit from each initial guess (ARX, IV); the
+/// lowest criterion wins (ties: the first).
+///
+/// On a record longer than `opts.explore_rows` the starts are explored on its first
+/// `explore_rows` samples (every start and detour of [`ls_minima`]), and only the best of those
+/// minima is then minimised on the whole record, from where it ended; the runners-up become
+/// Huber starts as they are: the exploration is most of the least-squares phase, and its cost
+/// then stops growing with N (METHOD.md 5.2, step 5).
+pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Workspace) -> LsFit {
+    fit_ls_nested(prob, judge, opts, &[], ws)
+}
+
+/// [`fit_ls`] with `nested` as further starts: the least-squares solutions of the pair's
+/// sub-models (nB - 1, nF) and (nB, nF - 1), embedded with [`embed`] (METHOD.md 5.2, step 2).
+/// A start at a sub-model's minimum is that same model, so the fit of the larger model is never
+/// worse than its sub-models' fits: the least-squares criterion cannot rise with the orders.
+pub fn fit_ls_nested(
+    prob: &Problem,
+    judge: &Judge,
+    opts: &SolverOptions,
+    nested: &[Vec<f64>],
+    ws: &mut Workspace,
+) -> LsFit {
+    // On a long record only the head's best minimum is minimised again on the whole record; the
+    // runners-up are Huber starts as the head left them (the chains walk on the head anyway).
+    // Minimising them too on the whole record never changed theta_LS or a cell (two
+    // 131 072-sample records: all 704 criteria the same to 1e-6) and cost 11-14 % of the run.
+    let (sols, head_others) = match exploration_head(prob, opts) {
+        Some(head) => {
+            let found = ls_minima(&head, opts, nested, ws);
+            let (best, others) = ranked(&found);
+            let others: Vec<Vec<f64>> = others.iter().map(|s| s.theta.clone()).collect();
+            (vec![solver::minimise(prob, Loss::LeastSquares, &best.theta, opts, ws)], Some(others))
+        }
+        None => (ls_minima(prob, opts, nested, ws), None),
+    };
+    let (best, others) = ranked(&sols);
+    let others = head_others.unwrap_or_else(|| others.iter().map(|s| s.theta.clone()).collect());
+    let mut alternatives: Vec<Vec<f64>> = others.into_iter().take(opts.huber_extra_starts).collect();
+    // On the stability boundary the Huber fit cannot move the near-unit pole (1/F has an
+    // almost infinite memory there), while a start just inside often reaches a much lower W.
+    let theta = &best.theta;
+    let radius = crate::oe::max_pole_radius(prob.split(theta).1);
+    if opts.huber_extra_starts > 0 && radius > BOUNDARY && radius.is_finite() {
+        let mut c = theta.clone();
+        let rho = CONTRACTED / radius;
+        for (j, v) in prob.f_mut(&mut c).iter_mut().enumerate() {
+            *v *= rho.powi(j as i32 + 1);
+        }
+        alternatives.push(c);
+    }
+    let mut fit = ls_from_solution(prob, best.clone(), judge, opts, ws);
+    fit.alternatives = alternatives;
+    fit
+}
+
+/// The first `solver.explore_rows` samples of a record longer than that, where the starts are
+/// explored (METHOD.md 5.2 step 5, 5.5); None when the whole record is explored.
+pub fn exploration_head<'a>(prob: &Problem<'a>, opts: &SolverOptions) -> Option<Problem<'a>> {
+    let rows = opts.explore_rows;
+    (rows > 0 && prob.n() > rows).then(|| Problem { u: &prob.u[..rows], y: &prob.y[..rows], ..*prob })
+}
+
+/// The lowest usable solution (ties: the first) and the others that are usable and distinct
+/// from it (relative [`DISTINCT`] in the criterion), in increasing criterion: the runner-up
+/// least-squares minima, further Huber starts (`solver.huber_extra_starts`).
+fn ranked(sols: &[Solution]) -> (&Solution, Vec<&Solution>) {
+    let mut best = 0;
+    for (i, sol) in sols.iter().enumerate() {
+        if better(sol, &sols[best]) {
+            best = i;
+        }
+    }
+    let top = &sols[best];
+    let mut others: Vec<&Solution> = sols
+        .iter()
+        .enumerate()
+        .filter(|&(i, sol)| {
+            let distinct = (sol.criterion - top.criterion).abs() > DISTINCT * top.criterion.abs();
+            i != best && sol.usable() && distinct
+        })
+        .map(|(_, sol)| sol)
+        .collect();
+    others.sort_by(|a, b| a.criterion.total_cmp(&b.criterion));
+    (top, others)
+}
+
+/// Every least-squares minimisation of the phase: from each initial guess (ARX, IV), from the
+/// robust detours, and from each `nested` start.
+///
+/// Without nested starts each guess also runs with heavy initial damping. With them that run
+/// no longer pays (issue 19, third session): on the paper grid it was never the only run to
+/// reach a pair's minimum, and dropping it kept the quality against the scipy peer (L2 96/96
+/// on both records; Huber 760 and 763 of 768 against 761 and 762) for 2 fewer minimisations
+/// per pair. (Dropping the first detour too saved as much again but left 8 of the paper
+/// grid's 96 least-squares fits higher than before, by up to 0.22 %, against 21 lower.) A
+/// pair without sub-models (`oesweep fit`, a grid's smallest pair) keeps it: on noise-free
+/// OE(2,2) data the OE(6,6) fit needs these starts to reach the exact fit.
+fn ls_minima(prob: &Problem, opts: &SolverOptions, nested: &[Vec<f64>], ws: &mut Workspace) -> Vec<Solution> {
+    let alone = nested.is_empty();
+    let guesses = initial_guess::initial_guesses(prob);
+    // Each guess also with heavy initial damping (gradient-like first steps, as a trust-region
+    // solver takes), which often ends in another, lower minimum.
+    let damped = SolverOptions { lambda0: DAMPED_LAMBDA0, ..opts.clone() };
+    let settings: &[&SolverOptions] = if alone { &[opts, &damped] } else { &[opts] };
+    let mut sols = Vec::new();
+    for g in &guesses {
+        for o in settings {
+            sols.push(solver::minimise(prob, Loss::LeastSquares, g, o, ws));
+        }
+    }
+    // Robust detours: spikes pull the least-squares fit into poor local minima, and a Huber
+    // fit (gamma = k sigma) followed by least squares from its solution often lands in a
+    // lower least-squares minimum (measured on piezo-like data).
+    let first = ranked(&sols).0.clone();
+    if first.criterion.is_finite() && first.criterion > 0.0 {
+        let sigma = (2.0 * first.criterion).sqrt();
+        for k in ROBUST_START_K {
+            let robust = solver::minimise(prob, Loss::Huber { gamma: k * sigma }, &first.theta, opts, ws);
+            if robust.criterion.is_finite() {
+                sols.push(solver::minimise(prob, Loss::LeastSquares, &robust.theta, opts, ws));
+            }
+        }
+    }
+    // The sub-models' minima, last, so that the detours start where they did without them.
+    // At high orders the per-pair starts above often end in a local minimum worse than a
+    // sub-model's (on the paper grid, in 46 of 172 neighbouring pairs the larger model's
+    // criterion was higher, by up to 0.5 %; the scipy peer's fits show the same, 44 of 172).
+    for start in nested {
+        sols.push(solver::minimise(prob, Loss::LeastSquares, start, opts, ws));
+    }
+    sols
+}
+
+/// Initial damping of the second least-squares run from each initial guess, for a pair
+/// without nested starts (see [`ls_minima`]). Damping 1 relative to diag(H) makes the first
+/// steps gradient-like, as a trust-region solver's are, and such a run often ends in a lower
+/// minimum than the undamped one; with nested starts it never was the only run to reach a
+/// pair's minimum on the paper grid (issue 19, commit 1b1b605), so only lone pairs pay for it.
+const DAMPED_LAMBDA0: f64 = 1.0;
+/// k of the robust detours of the least-squares phase (see [`ls_minima`]): a Huber fit at
+/// gamma = k sigma from the best start, then least squares from there, escapes the poor minima
+/// spikes pull a least-squares fit into. Two detours are what hold the least-squares fits at
+/// 96 of 96 against the scipy peer on the paper grid; without the k = 0.1 one 8 fits end
+/// higher (up to 0.22 %), without the k = 0.5 one 6 end higher and 363 Huber cells move
+/// (issue 19, commit 63cbb84; docs/PERFORMANCE.md).
+const ROBUST_START_K: [f64; 2] = [0.5, 0.1];
+/// Pole radius above which a least-squares fit counts as on the stability boundary: there the
+/// Huber fit cannot move the near-unit pole (1/F has an almost infinite memory), so the fit
+/// gets a contracted extra start (METHOD.md 5.2, step 4). 0.999 is well above the poles of the
+/// lightly damped piezo models (0.98-0.99) and below where the memory makes the fit creep.
+const BOUNDARY: f64 = 0.999;
+/// Radius the poles of a boundary fit are scaled to for that extra start: inside enough that
+/// the Huber fit moves freely, close enough to stay in the basin of theta_LS. Dropping the
+/// start saved only 6-10 % of the Huber phase and lost cells against the peer (issue 19).
+const CONTRACTED: f64 = 0.99;
+/// Least-squares minima whose criteria differ by less than this (relative) are one minimum:
+/// well above the solver's `ftol` (1e-10), so two runs that converged to the same minimum
+/// count once, and well below [`crate::estimate::Chains::MERGE`] (1e-6), because a runner-up
+/// least-squares minimum is a start of its own for the Huber chains (which decide themselves,
+/// at 1e-6 on W, when two of them met).
+const DISTINCT: f64 = 1e-9;
+
+/// True when `a` is a usable solution with a lower criterion than `b`.
+fn better(a: &Solution, b: &Solution) -> bool {
+    a.usable() && (!b.usable() || a.criterion < b.criterion)
+}
