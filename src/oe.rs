@@ -17,6 +17,15 @@
 use crate::kernels;
 use faer::Mat;
 
+/// A model structure: orders (nB, nF) and input delay (the plan calls its structures
+/// "pairs", after the order pairs of the paper's grid).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Structure {
+    pub nb: usize,
+    pub nf: usize,
+    pub delay: usize,
+}
+
 /// Apply `1/F` in place: `x_t <- x_t - sum_j f_j x_{t-j}` (zero initial conditions).
 pub fn inv_f_in_place(f: &[f64], x: &mut [f64]) {
     kernels::inv_f(f, x)

@@ -8,14 +8,7 @@
 
 use crate::job::{self, Job, StartStrategy, ValidJob};
 
-/// A model structure: orders (nB, nF) and input delay (the plan calls its structures
-/// "pairs", after the order pairs of the paper's grid).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Structure {
-    pub nb: usize,
-    pub nf: usize,
-    pub delay: usize,
-}
+pub use crate::oe::Structure;
 
 /// All pairs of the given ranges, in plan order.
 fn pairs(nb: &[usize], nf: &[usize], delays: &[usize]) -> Vec<Structure> {

@@ -231,16 +231,47 @@ fn heat_map_indices(n: usize, picks: &[u32]) -> Vec<u32> {
     v.into_iter().collect()
 }
 
+/// The page's sections, in order: one function each.
 fn build_sections(s: &Review) -> Result<Vec<Section>> {
-    let folder = &s.folder;
     let sel = &s.selection;
     let m1 = sel.m1.as_ref().map(|p| Picked { name: "M1", model: &p.model, colour: plot::M1_COLOUR });
     let m2 = sel.m2.as_ref().map(|p| Picked { name: "M2", model: &p.model, colour: plot::M2_COLOUR });
-    let picks: Vec<Picked> = m1.into_iter().chain(m2).collect();
-    let basis_name = sel.basis.column();
-    let mut sections = Vec::new();
+    let grid = GridView::of(s, m2.or(m1));
+    let mut sections = vec![picks_section(s, m1, m2)];
+    sections.push(curves_section(s, &grid, m1, m2)?);
+    sections.push(maps_section(s, &grid, m1, m2)?);
+    sections.push(bode_section(s, m1, m2)?);
+    sections.extend(residual_sections(s, m2.or(m1))?);
+    sections.push(files_section());
+    Ok(sections)
+}
 
-    // --- Picks table ---
+/// The rows the grid figures draw: with a delay grid, one delay (the picks', else the first).
+struct GridView {
+    rows: Vec<CellRow>,
+    note: Option<String>,
+}
+
+impl GridView {
+    fn of(s: &Review, pick: Option<Picked>) -> GridView {
+        let delays: BTreeSet<u32> = s.rows.iter().map(|r| r.key.delay).collect();
+        let shown_delay = pick.map(|p| p.model.key.delay).or_else(|| delays.first().copied());
+        let rows = s.rows.iter().filter(|r| Some(r.key.delay) == shown_delay).cloned().collect();
+        let note = (delays.len() > 1).then(|| {
+            format!(
+                "The table holds delays {}; the grid figures show delay {} (the picks').",
+                delays.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", "),
+                shown_delay.unwrap_or(0)
+            )
+        });
+        GridView { rows, note }
+    }
+}
+
+/// The picks with their least-squares twins, their rules, parameters and best candidates.
+fn picks_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -> Section {
+    let sel = &s.selection;
+    let basis_name = sel.basis.column();
     let mut intro = String::new();
     let mut table_rows = Vec::new();
     for (p, class, pick) in [(m1, "m1", &sel.m1), (m2, "m2", &sel.m2)] {
@@ -302,40 +333,27 @@ fn build_sections(s: &Review) -> Result<Vec<Section>> {
             intro.push_str(&html::candidates_table(&p.candidates, basis_name, 10));
         }
     }
-    sections.push(Section {
-        id: "picks",
-        heading: "Picked models".into(),
-        intro_html: intro,
-        figures: vec![],
-        notes: vec![],
-    });
+    Section { id: "picks", heading: "Picked models".into(), intro_html: intro, figures: vec![], notes: vec![] }
+}
 
-    // --- W and L1C over nF ---
-    // With a delay grid, the grid figures are drawn at one delay: the picks' (else the first).
-    let delays: BTreeSet<u32> = s.rows.iter().map(|r| r.key.delay).collect();
-    let shown_delay = m2.or(m1).map(|p| p.model.key.delay).or_else(|| delays.first().copied());
-    let grid_rows: Vec<CellRow> = s.rows.iter().filter(|r| Some(r.key.delay) == shown_delay).cloned().collect();
-    let delay_note = (delays.len() > 1).then(|| {
-        format!(
-            "The table holds delays {}; the grid figures show delay {} (the picks').",
-            delays.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", "),
-            shown_delay.unwrap_or(0)
-        )
-    });
+/// W and L1C over nF at the picks' k (paper Figs. 10 and 12).
+fn curves_section(s: &Review, grid: &GridView, m1: Option<Picked>, m2: Option<Picked>) -> Result<Section> {
+    let (folder, sel) = (&s.folder, &s.selection);
+    let grid_rows = &grid.rows;
     let mut figs = Vec::new();
-    let mut notes: Vec<String> = delay_note.iter().cloned().collect();
+    let mut notes: Vec<String> = grid.note.iter().cloned().collect();
     let first_k = grid_rows.iter().filter_map(|r| r.key.k_index).min();
     for (curve, pick, file) in [(Curve::W, m1, "report-w-nf.svg"), (Curve::L1c, m2, "report-l1c-nf.svg")] {
         match pick.map(|p| p.model.k_index()).or(first_k) {
             Some(ki) => figs.push(figure(
                 folder,
                 file,
-                figures::curve_figure(&grid_rows, curve, ki, s.k_of(ki), sel.min_tolerance, pick, file),
+                figures::curve_figure(grid_rows, curve, ki, s.k_of(ki), sel.min_tolerance, pick, file),
             )?),
             None => notes.push(format!("{file}: the table has no Huber cell to draw.")),
         }
     }
-    sections.push(Section {
+    Ok(Section {
         id: "curves",
         heading: "Order choice: W and L1C over nF".into(),
         intro_html: "<p>The picks are local minima over nF of these curves (one curve per nB and k), chosen \
@@ -343,28 +361,38 @@ fn build_sections(s: &Review) -> Result<Vec<Section>> {
             .into(),
         figures: figs,
         notes,
-    });
+    })
+}
 
-    // --- Heat maps and picks against k ---
+/// Heat maps over (nB, nF) and the picks against k.
+fn maps_section(s: &Review, grid: &GridView, m1: Option<Picked>, m2: Option<Picked>) -> Result<Section> {
+    let (folder, sel) = (&s.folder, &s.selection);
+    let grid_rows = &grid.rows;
+    let picks: Vec<Picked> = m1.into_iter().chain(m2).collect();
     let pick_ks: Vec<u32> = picks.iter().map(|p| p.model.k_index()).collect();
     let mut figs = Vec::new();
     let n_k = s.job.ks.len().max(s.rows.iter().filter_map(|r| r.key.k_index).max().map_or(0, |m| m as usize + 1));
     for ki in heat_map_indices(n_k, &pick_ks) {
         let file = format!("{FIGURE_PREFIX}heat-k{ki:02}.svg");
-        figs.push(figure(folder, &file, figures::heat_figure(&grid_rows, ki, s.k_of(ki), sel.basis, &picks, &file))?);
+        figs.push(figure(folder, &file, figures::heat_figure(grid_rows, ki, s.k_of(ki), sel.basis, &picks, &file))?);
     }
     let file = "report-picks-k.svg";
-    figs.push(figure(folder, file, figures::picks_by_k_figure(&grid_rows, &s.job.ks, sel, file))?);
+    figs.push(figure(folder, file, figures::picks_by_k_figure(grid_rows, &s.job.ks, sel, file))?);
     let shown = if n_k <= MAX_HEAT_MAPS { "every k of the grid" } else { "k spread over the grid and the picks' k" };
-    sections.push(Section {
+    Ok(Section {
         id: "maps",
         heading: "The whole grid: heat maps and the picks against k".into(),
         intro_html: format!("<p>Heat maps for {shown} ({} of {n_k}).</p>\n", figs.len() - 1),
         figures: figs,
         notes: vec![],
-    });
+    })
+}
 
-    // --- Bode ---
+/// The picks' frequency responses against the spectral estimate (paper Figs. 11 and 13), with
+/// the gain band of the covariance the run computed.
+fn bode_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -> Result<Section> {
+    let folder = &s.folder;
+    let picks: Vec<Picked> = m1.into_iter().chain(m2).collect();
     let mut figs = Vec::new();
     let mut notes = Vec::new();
     match crate::spectral::estimate(&s.est.u, &s.est.y, s.ts(), s.job.job.spectrum) {
@@ -393,19 +421,23 @@ fn build_sections(s: &Review) -> Result<Vec<Section>> {
     if picks.is_empty() {
         notes.push("No pick, so no frequency response to show.".into());
     }
-    sections.push(Section {
+    Ok(Section {
         id: "bode",
         heading: "Frequency response of the picks".into(),
         intro_html: String::new(),
         figures: figs,
         notes,
-    });
+    })
+}
 
-    // --- Residuals and simulated outputs, of the M2 pick (the paper's final model) ---
+/// Residuals and simulated outputs of the M2 pick (the paper's final model, else M1) and the
+/// least-squares fit of its orders (paper Figs. 9 and 14).
+fn residual_sections(s: &Review, pick: Option<Picked>) -> Result<[Section; 2]> {
+    let folder = &s.folder;
     let mut res_figs = Vec::new();
     let mut out_figs = Vec::new();
     let mut notes = Vec::new();
-    match m2.or(m1) {
+    match pick {
         Some(p) => match s.ls_row(p.model) {
             Some(ls) => {
                 let file = "report-residuals.svg";
@@ -443,23 +475,26 @@ fn build_sections(s: &Review) -> Result<Vec<Section>> {
         },
         None => notes.push("No pick, so no residuals or simulated outputs to show.".into()),
     }
-    sections.push(Section {
+    let residuals = Section {
         id: "residuals",
         heading: "Residuals: least squares against Huber".into(),
         intro_html: String::new(),
         figures: res_figs,
         notes: notes.clone(),
-    });
-    sections.push(Section {
+    };
+    let outputs = Section {
         id: "outputs",
         heading: "Simulated outputs".into(),
         intro_html: String::new(),
         figures: out_figs,
         notes,
-    });
+    };
+    Ok([residuals, outputs])
+}
 
-    // --- Files ---
-    sections.push(Section {
+/// Links to the result files.
+fn files_section() -> Section {
+    Section {
         id: "files",
         heading: "Result files".into(),
         intro_html: "<ul>\n<li><a href=\"cells.parquet\">cells.parquet</a>: one row per Huber cell and per \
@@ -469,8 +504,7 @@ fn build_sections(s: &Review) -> Result<Vec<Section>> {
             .into(),
         figures: vec![],
         notes: vec![],
-    });
-    Ok(sections)
+    }
 }
 
 /// Facts about the sweep shown at the top of the page.

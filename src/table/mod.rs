@@ -16,7 +16,7 @@ pub mod columns;
 
 use crate::estimate::evidence::Evidence;
 use crate::estimate::{Assessment, HuberFit, LsFit, StartKind, Termination};
-use crate::plan::Structure;
+use crate::oe::Structure;
 pub use columns::{COLUMNS, Column, ColumnType, Value};
 
 /// Which fit a row holds (the `method` column).

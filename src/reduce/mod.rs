@@ -41,8 +41,10 @@
 //!
 //! Defaults: `min_tolerance = 1e-3`, `fit_tolerance = 0.05` points.
 
-use crate::table::columns::RowJson;
-use crate::table::{CellRow, FitKind, RowKey, Status};
+mod candidate;
+
+use crate::table::CellRow;
+pub use candidate::Candidate;
 use serde::{Deserialize, Serialize};
 use std::cmp::Ordering;
 use std::collections::BTreeMap;
@@ -107,82 +109,6 @@ impl ReduceOptions {
     /// Default tolerances with the given basis.
     pub fn new(basis: FitBasis) -> Self {
         ReduceOptions { basis, min_tolerance: DEFAULT_MIN_TOLERANCE, fit_tolerance: DEFAULT_FIT_TOLERANCE }
-    }
-}
-
-/// A local minimum of a W or L1C curve: its table row and its score.
-///
-/// In `selection.json` a candidate is the row's reproducible columns (all but the wall time,
-/// [`crate::table::columns::RowJson`]) with `score` after `fit_band`; read back, the wall time
-/// is 0.
-#[derive(Clone, Debug)]
-pub struct Candidate {
-    pub row: CellRow,
-    /// The fit that ranks candidates (the basis column).
-    pub score: f64,
-}
-
-impl std::ops::Deref for Candidate {
-    type Target = CellRow;
-    fn deref(&self) -> &CellRow {
-        &self.row
-    }
-}
-
-/// Equal as `selection.json` shows them: the wall time is not part of a candidate.
-impl PartialEq for Candidate {
-    fn eq(&self, other: &Self) -> bool {
-        self.score == other.score
-            && crate::table::COLUMNS
-                .iter()
-                .filter(|c| c.reproducible)
-                .all(|c| (c.get)(&self.row) == (c.get)(&other.row))
-    }
-}
-
-impl Serialize for Candidate {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        RowJson { row: &self.row, extra: &[("score", self.score)], after: "fit_band" }.serialize(s)
-    }
-}
-
-impl<'de> Deserialize<'de> for Candidate {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        use serde::de::Error;
-        let obj = serde_json::Map::<String, serde_json::Value>::deserialize(d)?;
-        let score =
-            obj.get("score").and_then(serde_json::Value::as_f64).ok_or_else(|| D::Error::missing_field("score"))?;
-        // Files of older versions hold only some columns; a candidate is an ok Huber row (rule 1).
-        let key = RowKey { kind: FitKind::Huber, delay: 0, nb: 0, nf: 0, k_index: None };
-        let base = CellRow { status: Status::Ok, ..CellRow::empty(key) };
-        let row = crate::table::columns::row_from_json(&obj, base).map_err(D::Error::custom)?;
-        Ok(Candidate { row, score })
-    }
-}
-
-impl Candidate {
-    /// The row as a candidate, if it takes part in the choice (rule 1).
-    fn new(row: &CellRow, score: f64) -> Option<Self> {
-        takes_part(row).then(|| Candidate { row: row.clone(), score })
-    }
-
-    /// The candidate's k index (every candidate has one, rule 1).
-    pub fn k_index(&self) -> u32 {
-        self.key.k_index.unwrap_or(u32::MAX)
-    }
-
-    /// The candidate's k, gamma, W and L1C (finite for every candidate, rule 1).
-    pub fn k(&self) -> f64 {
-        self.row.k.unwrap_or(f64::NAN)
-    }
-    pub fn gamma(&self) -> f64 {
-        self.fit.gamma.unwrap_or(f64::NAN)
-    }
-    pub fn criterion(&self) -> f64 {
-        self.fit.criterion.unwrap_or(f64::NAN)
-    }
-    pub fn l1c(&self) -> f64 {
-        self.fit.l1c.unwrap_or(f64::NAN)
     }
 }
 
@@ -419,7 +345,7 @@ fn pick(minima: &[&CellRow], opts: &ReduceOptions, curve: Curve) -> Option<Pick>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::table::Status;
+    use crate::table::{FitKind, RowKey, Status};
 
     fn key(kind: FitKind, nb: u32, nf: u32, k_index: Option<u32>) -> RowKey {
         RowKey { kind, delay: 1, nb, nf, k_index }

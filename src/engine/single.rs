@@ -1,0 +1,235 @@
+//! The one-model operations: [`fit`] one cell (`oesweep fit`), the nonparametric
+//! [`spectrum`] of a record, and [`simulate`] example data.
+
+use crate::data::{self, ColumnRef, ReadOptions};
+use crate::error::{Error, Result};
+use crate::estimate::{self, HuberFit, InitialState, Judge, LsFit, Problem, SolverOptions, Workspace};
+use crate::job;
+use crate::simulate;
+use crate::spectral;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// One model, `oesweep fit`: the least-squares fit of (nB, nF) and the Huber fit at k from it.
+#[derive(Clone, Debug)]
+pub struct FitRequest {
+    pub data: PathBuf,
+    pub u: ColumnRef,
+    pub y: ColumnRef,
+    /// Data rows of the estimation record (default: all).
+    pub rows: Option<[usize; 2]>,
+    /// Validation file; with `val_rows` and no file, the estimation file.
+    pub validation: Option<PathBuf>,
+    /// Validation output column (default: see [`data::validation_column`]).
+    pub val_y: Option<ColumnRef>,
+    /// Data rows of the validation record (default: all).
+    pub val_rows: Option<[usize; 2]>,
+    /// Offsets of the signals ([`data::levels`]).
+    pub offset: data::Offset,
+    /// The initial state `fit` and `fit_val` are computed with.
+    pub initial_state: InitialState,
+    /// The spectral estimate of `band`.
+    pub spectrum: spectral::SpectrumMethod,
+    pub nb: usize,
+    pub nf: usize,
+    pub k: f64,
+    pub delay: usize,
+    /// Sampling period (needed for `band`).
+    pub ts: Option<f64>,
+    pub band: Option<(f64, f64)>,
+    pub solver: SolverOptions,
+}
+
+/// Report of [`fit`] (`fit --json` prints it).
+#[derive(serde::Serialize)]
+pub struct FitReport {
+    pub data: PathBuf,
+    pub n: usize,
+    pub validation: Option<PathBuf>,
+    pub validation_column: Option<String>,
+    pub nb: usize,
+    pub nf: usize,
+    pub delay: usize,
+    pub band_hz: Option<(f64, f64)>,
+    /// The offset mode, and the input level u0 taken out (the model is `B/F (u - u0) + offset`).
+    pub offset_mode: data::Offset,
+    pub input_level: f64,
+    pub initial_state: InitialState,
+    /// What the user should know about the data.
+    pub warnings: Vec<String>,
+    pub sigma: f64,
+    #[serde(flatten)]
+    pub huber: HuberFit,
+    pub converged: bool,
+    pub seconds: f64,
+    pub ls: LsFit,
+}
+
+impl FitRequest {
+    /// The job file's rules, named as the command line names the settings.
+    fn check(&self) -> Result<()> {
+        let bad = |flag: &str, msg: String| Error::Invalid(format!("{flag} {msg}"));
+        if self.nb == 0 {
+            return Err(Error::Invalid("--nb must be at least 1".into()));
+        }
+        for (flag, rows) in [("--rows", self.rows), ("--val-rows", self.val_rows)] {
+            if let Some(r) = rows {
+                data::check_rows(r).map_err(|m| bad(flag, m))?;
+            }
+        }
+        job::check_k(self.k).map_err(|m| bad("--k", m))?;
+        if let Some(ts) = self.ts {
+            job::check_sampling_period(ts).map_err(|m| bad("--ts", m))?;
+        }
+        if let Some((lo, hi)) = self.band {
+            let Some(ts) = self.ts else {
+                return Err(Error::Invalid("--band needs --ts (the sampling period in seconds)".into()));
+            };
+            job::check_band(lo, hi, ts).map_err(|m| bad(&format!("--band {lo},{hi}:"), m))?;
+        }
+        if self.solver.max_iterations == 0 {
+            return Err(Error::Invalid("--max-iterations must be at least 1".into()));
+        }
+        Ok(())
+    }
+}
+
+/// Fit one model (see [`FitRequest`]).
+pub fn fit(req: &FitRequest) -> Result<FitReport> {
+    req.check()?;
+    // The records as a job names them, read by the run's loader.
+    let data = job::DataSpec {
+        path: req.data.clone(),
+        u: Some(req.u.clone()),
+        y: Some(req.y.clone()),
+        rows: req.rows,
+        ..Default::default()
+    };
+    let val_path = req.validation.clone().or_else(|| req.val_rows.map(|_| req.data.clone()));
+    let validation = match &val_path {
+        Some(p) => {
+            let opts = ReadOptions { rows: req.val_rows, ..ReadOptions::default() };
+            let y = data::validation_column(p, req.val_y.as_ref(), &req.y, &opts)?;
+            Some(job::DataSpec {
+                path: p.clone(),
+                u: Some(req.u.clone()),
+                y: Some(y),
+                rows: req.val_rows,
+                ..Default::default()
+            })
+        }
+        None => None,
+    };
+    let job::Inputs { est, val, levels, warnings } =
+        job::read_inputs(&data, validation.as_ref(), req.offset, (req.nb, req.nf, req.delay))?;
+    let spec = match (req.band, req.ts) {
+        (Some((lo, hi)), Some(ts)) => {
+            let s = spectral::estimate(&est.u, &est.y, ts, req.spectrum)?;
+            let bins = s.band(lo, hi);
+            Some((s, bins))
+        }
+        _ => None,
+    };
+    let judge = Judge {
+        validation: val.as_ref().map(|v| (&v.u[..], &v.y[..])),
+        band: spec.as_ref().map(|(s, bins)| (s, &bins[..])),
+        initial_state: req.initial_state,
+    };
+    let prob =
+        Problem { u: &est.u, y: &est.y, nb: req.nb, nf: req.nf, delay: req.delay, offset: req.offset.estimated() };
+    let mut ws = Workspace::new();
+    let t0 = Instant::now();
+    let mut ls = estimate::fit_ls(&prob, &judge, &req.solver, &mut ws);
+    let (mut huber, _) = estimate::fit_huber_multi(&prob, &ls, req.k, &judge, &req.solver, &mut ws);
+    let seconds = t0.elapsed().as_secs_f64();
+    // Reported in the data's units, as in the table.
+    ls.offset = levels.offset(ls.offset);
+    huber.offset = levels.offset(huber.offset);
+    Ok(FitReport {
+        data: req.data.clone(),
+        n: est.u.len(),
+        validation: val_path,
+        validation_column: val.as_ref().map(|v| v.y_name.clone()),
+        nb: req.nb,
+        nf: req.nf,
+        delay: req.delay,
+        band_hz: req.band,
+        offset_mode: req.offset,
+        input_level: levels.u0,
+        initial_state: req.initial_state,
+        warnings,
+        sigma: ls.sigma,
+        converged: huber.termination.converged(),
+        huber,
+        seconds,
+        ls,
+    })
+}
+
+/// A nonparametric frequency response, `oesweep spectrum`.
+#[derive(Clone, Debug)]
+pub struct SpectrumRequest {
+    pub data: PathBuf,
+    pub u: ColumnRef,
+    pub y: ColumnRef,
+    pub rows: Option<[usize; 2]>,
+    pub ts: f64,
+    pub method: spectral::SpectrumMethod,
+}
+
+/// Report of [`spectrum`] (`spectrum --json` prints it): per usable bin (the input has power
+/// there) the frequency, `G_spec` and the coherence, and an approximate 95 % band of `|G_spec|`
+/// ([`SpectralEstimate::magnitude_band`]).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SpectrumReport {
+    pub data: PathBuf,
+    pub n: usize,
+    pub method: spectral::SpectrumMethod,
+    /// Output samples the robust method replaced.
+    pub replaced: usize,
+    pub segment: usize,
+    pub segments: usize,
+    pub freq_hz: Vec<f64>,
+    pub re: Vec<f64>,
+    pub im: Vec<f64>,
+    pub coherence: Vec<f64>,
+    pub mag_lower: Vec<f64>,
+    pub mag_upper: Vec<f64>,
+}
+
+/// The spectral estimate of one record (see [`SpectrumRequest`]).
+pub fn spectrum(req: &SpectrumRequest) -> Result<SpectrumReport> {
+    job::check_sampling_period(req.ts).map_err(|m| Error::Invalid(format!("--ts {m}")))?;
+    if let Some(r) = req.rows {
+        data::check_rows(r).map_err(|m| Error::Invalid(format!("--rows {m}")))?;
+    }
+    let opts = ReadOptions { rows: req.rows, ..ReadOptions::default() };
+    let rec = data::read_record_with(&req.data, &req.u, &req.y, &opts)?;
+    let est =
+        spectral::estimate(&rec.u, &rec.y, req.ts, req.method).map_err(|e| Error::input(&req.data, e.to_string()))?;
+    let bins: Vec<usize> = (0..est.freq_hz.len()).filter(|&k| est.re[k].is_finite()).collect();
+    let bands: Vec<(f64, f64)> = bins.iter().map(|&k| est.magnitude_band(k).unwrap_or((f64::NAN, f64::NAN))).collect();
+    Ok(SpectrumReport {
+        data: req.data.clone(),
+        n: rec.len(),
+        method: req.method,
+        replaced: est.replaced,
+        segment: est.segment,
+        segments: est.segments,
+        freq_hz: bins.iter().map(|&k| est.freq_hz[k]).collect(),
+        re: bins.iter().map(|&k| est.re[k]).collect(),
+        im: bins.iter().map(|&k| est.im[k]).collect(),
+        coherence: bins.iter().map(|&k| est.coherence[k]).collect(),
+        mag_lower: bands.iter().map(|b| b.0).collect(),
+        mag_upper: bands.iter().map(|b| b.1).collect(),
+    })
+}
+
+/// Example data, `oesweep simulate`: the system file's OE model driven by a PRBS, with noise
+/// and spikes as `opts` say, written to `out` as CSV (`u,y,y0`). Returns the samples written.
+pub fn simulate(system: &Path, out: &Path, opts: &simulate::SimOptions) -> Result<usize> {
+    let sys = simulate::read_system(system)?;
+    let rec = simulate::generate(&sys, opts)?;
+    simulate::write_csv(out, &rec)?;
+    Ok(opts.n)
+}

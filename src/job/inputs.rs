@@ -1,0 +1,56 @@
+//! The records a job names, read beside the checked job: the one loader of the estimation and
+//! validation records, for a run, a merge, the report and `oesweep fit`.
+
+use super::{DataSpec, ValidJob};
+use crate::data::{self, Levels, Offset, Record};
+use crate::error::Result;
+
+/// The records a job names, read and checked, with their levels taken out.
+pub struct Inputs {
+    pub est: Record,
+    pub val: Option<Record>,
+    /// The levels taken out of both records (the job's `offset`).
+    pub levels: Levels,
+    /// Things the user should know about the data (printed once, kept in selection.json).
+    pub warnings: Vec<String>,
+}
+
+/// Read the job's data files and check them against the largest orders of the grid.
+pub fn load_inputs(vj: &ValidJob) -> Result<Inputs> {
+    read_inputs(&vj.job.data, vj.job.validation.as_ref(), vj.job.offset, vj.largest())
+}
+
+/// The one loader of records, for a job and for `oesweep fit`: read the estimation and the
+/// validation record as their specs say (the validation output column resolved, see
+/// [`resolve_validation`]), check both against the largest model `(nb, nf, delay)`, and take
+/// out the levels of `offset` ([`Levels::of`], computed here only).
+pub fn read_inputs(
+    data: &DataSpec,
+    validation: Option<&DataSpec>,
+    offset: Offset,
+    (nb_max, nf_max, delay_max): (usize, usize, usize),
+) -> Result<Inputs> {
+    let (mut est, mut val) = read_records(data, validation)?;
+    data::check_for_model(&est, nb_max, nf_max, delay_max)?;
+    if let Some(rec) = &val {
+        data::check_for_model(rec, nb_max, nf_max, delay_max)?;
+    }
+    let levels = Levels::of(offset, &est);
+    let warnings = data::levels::offset_warning(offset, &est).into_iter().collect();
+    levels.apply(&mut est);
+    if let Some(v) = val.as_mut() {
+        levels.apply(v);
+    }
+    Ok(Inputs { est, val, levels, warnings })
+}
+
+/// The records of a checked job, as read from the files (levels not taken out): for the
+/// report's plots, which show the data in its own units.
+pub fn read_records(data: &DataSpec, validation: Option<&DataSpec>) -> Result<(Record, Option<Record>)> {
+    let est = data::read_record_with(&data.path, &data.u_col(), &data.y_col(), &data.read_options())?;
+    let val = match validation {
+        Some(v) => Some(data::read_record_with(&v.path, &v.u_col(), &v.y_col(), &v.read_options())?),
+        None => None,
+    };
+    Ok((est, val))
+}

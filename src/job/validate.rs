@@ -1,0 +1,276 @@
+//! The rules of a job file: every field checked and the job normalised (paths resolved,
+//! defaults filled in, the validation record's output column found), with one error naming
+//! the file and the field. The rules that `oesweep fit` shares are public.
+
+use super::{DEFAULT_DELAY, DataSpec, Job, KGrid, MAX_CELLS, MAX_ORDER, MIN_EXPLORE_ROWS, k_values};
+use crate::data::{self, ColumnRef, Delimiter};
+use crate::error::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// Rules that the job file and `oesweep fit` share. Each returns what is wrong; the caller
+/// names the field or flag.
+pub fn check_sampling_period(ts: f64) -> std::result::Result<(), String> {
+    if ts.is_finite() && ts > 0.0 { Ok(()) } else { Err(format!("must be a positive number of seconds, got {ts}")) }
+}
+
+/// A tuning constant k (see [`check_sampling_period`]).
+pub fn check_k(k: f64) -> std::result::Result<(), String> {
+    if k.is_finite() && k > 0.0 { Ok(()) } else { Err(format!("must be positive, got {k}")) }
+}
+
+/// A frequency band [lo, hi] in Hz at sampling period `ts` (see [`check_sampling_period`]).
+pub fn check_band(lo: f64, hi: f64, ts: f64) -> std::result::Result<(), String> {
+    let nyq = 0.5 / ts;
+    // The tolerance lets `hi` be the Nyquist frequency as written in decimal.
+    if lo >= 0.0 && hi > lo && hi <= nyq * (1.0 + 1e-12) {
+        Ok(())
+    } else {
+        Err(format!("need 0 <= lo < hi <= Nyquist frequency {nyq} Hz"))
+    }
+}
+
+/// The reader fields of a data spec (`which` is "data" or "validation"): (field, message).
+fn check_data_spec(d: &DataSpec, which: &str) -> std::result::Result<(), (String, String)> {
+    if let Some(delim) = &d.delimiter {
+        Delimiter::parse(delim).map_err(|m| (format!("{which}.delimiter"), m))?;
+    }
+    if let Some(rows) = d.rows {
+        data::check_rows(rows).map_err(|m| (format!("{which}.rows"), m))?;
+    }
+    for (name, c) in [("u", &d.u), ("y", &d.y)] {
+        if c == &Some(ColumnRef::Position(0)) {
+            return Err((format!("{which}.{name}"), "column position 0: positions count from 1".into()));
+        }
+    }
+    Ok(())
+}
+
+/// `p` relative to `base`, with `a/../` folded lexically so messages show readable paths.
+fn resolve(base: &Path, p: &Path) -> PathBuf {
+    use std::path::Component;
+    let joined = if p.is_absolute() { p.to_path_buf() } else { base.join(p) };
+    let mut out = PathBuf::new();
+    for c in joined.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir if matches!(out.components().next_back(), Some(Component::Normal(_))) => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    if out.as_os_str().is_empty() { PathBuf::from(".") } else { out }
+}
+
+/// The validation record's output column (the file's `y0` when it has one,
+/// [`data::validation_column`]) and sampling period, filled in so that the checked job is
+/// complete. Reads the header of the validation file when its column is not given.
+pub(super) fn resolve_validation(mut job: Job) -> Result<Job> {
+    let (data_y, ts) = (job.data.y_col(), job.data.ts);
+    if let Some(v) = job.validation.as_mut() {
+        v.y = Some(data::validation_column(&v.path, v.y.as_ref(), &data_y, &v.read_options())?);
+        v.ts = v.ts.or(ts);
+    }
+    Ok(job)
+}
+
+/// Check every field and normalise the job: paths resolved, defaults filled in, the delay as
+/// `grid.delay`, k as an explicit list.
+pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
+    // Messages quote paths and values from the job, which may hold control characters.
+    let bad = |field: &str, msg: String| Error::input(path, data::one_line(&format!("field '{field}': {msg}")));
+    // Absolute base: job.json in the output folder must locate the data from anywhere.
+    let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let base = parent.canonicalize().unwrap_or_else(|_| parent.to_path_buf());
+    if job.name.trim().is_empty() {
+        return Err(bad("name", "must not be empty".into()));
+    }
+    if job.data.path.as_os_str().is_empty() {
+        return Err(bad("data.path", "missing: the data file is required".into()));
+    }
+    job.data.path = resolve(&base, &job.data.path);
+    job.data.u.get_or_insert_with(|| ColumnRef::name("u"));
+    job.data.y.get_or_insert_with(|| ColumnRef::name("y"));
+    check_data_spec(&job.data, "data").map_err(|(f, m)| bad(&f, m))?;
+    match job.data.ts {
+        Some(ts) => check_sampling_period(ts).map_err(|m| bad("data.ts", m))?,
+        None => return Err(bad("data.ts", "missing: the sampling period in seconds is required".into())),
+    }
+    if let Some(v) = job.validation.as_mut() {
+        // The usual split of one experiment: same file and layout, other rows; or the same
+        // rows, other columns (`uVal`, `yVal` beside `uEst`, `yEst`).
+        if v.path.as_os_str().is_empty() {
+            if v.rows.is_none() && v.u.is_none() && v.y.is_none() {
+                return Err(bad(
+                    "validation",
+                    "give its 'path', or the 'rows' or columns ('u', 'y') it takes from the estimation file (as \
+                     it is, it would be the estimation record)"
+                        .into(),
+                ));
+            }
+            v.path = job.data.path.clone();
+        } else {
+            v.path = resolve(&base, &v.path);
+        }
+        v.u.get_or_insert_with(|| job.data.u_col());
+        if v.delimiter.is_none() && v.path == job.data.path {
+            v.delimiter = job.data.delimiter.clone();
+        }
+        v.header.get_or_insert(job.data.header.unwrap_or_default());
+        check_data_spec(v, "validation").map_err(|(f, m)| bad(&f, m))?;
+        if let Some(ts) = v.ts {
+            let ets = job.data.ts.unwrap();
+            check_sampling_period(ts).map_err(|m| bad("validation.ts", m))?;
+            if (ts - ets).abs() > 1e-9 * ets {
+                return Err(bad(
+                    "validation.ts",
+                    format!("sampling period {ts} s differs from the estimation record's {ets} s"),
+                ));
+            }
+        }
+    }
+    let [b0, b1] = job.grid.nb;
+    let [f0, f1] = job.grid.nf;
+    if b0 < 1 || b0 > b1 {
+        return Err(bad("grid.nb", format!("[{b0}, {b1}] is not a range [from, to] with 1 <= from <= to")));
+    }
+    if f0 > f1 {
+        return Err(bad("grid.nf", format!("[{f0}, {f1}] is not a range [from, to] with from <= to")));
+    }
+    if b1 > MAX_ORDER || f1 > MAX_ORDER {
+        return Err(bad("grid", format!("orders above {MAX_ORDER} are not supported")));
+    }
+    let [d0, d1] = match (job.grid.delay, job.delay) {
+        (Some(_), Some(_)) => {
+            return Err(bad("delay", "give either 'delay' or 'grid.delay', not both".into()));
+        }
+        (Some(range), None) => range,
+        (None, Some(d)) => [d, d],
+        (None, None) => [DEFAULT_DELAY; 2],
+    };
+    if d0 > d1 {
+        return Err(bad("grid.delay", format!("[{d0}, {d1}] is not a range [from, to] with from <= to")));
+    }
+    job.grid.delay = Some([d0, d1]);
+    job.delay = None;
+    if let KGrid::Range(r) = &job.grid.k {
+        if r.count == 0 {
+            return Err(bad("grid.k.count", "must be at least 1".into()));
+        }
+        if !(r.from.is_finite() && r.to.is_finite() && r.from > 0.0 && r.to >= r.from) {
+            return Err(bad("grid.k", format!("from {} to {}: need 0 < from <= to", r.from, r.to)));
+        }
+        if r.count > 1 && r.from == r.to {
+            return Err(bad("grid.k", format!("from == to == {} with count {}: the range is empty", r.from, r.count)));
+        }
+    }
+    // The cell cap is checked before the k grid is expanded: a typo such as a count of 1e15
+    // must be an error, not an allocation that aborts the process.
+    let n_k = match &job.grid.k {
+        KGrid::List(v) => v.len(),
+        KGrid::Range(r) => r.count,
+    };
+    let cells = ((b1 - b0 + 1) * (f1 - f0 + 1)) as u128 * ((d1 - d0) as u128 + 1) * n_k as u128;
+    if cells > MAX_CELLS as u128 {
+        return Err(bad("grid", format!("{cells} cells is above the limit of {MAX_CELLS}")));
+    }
+    let ks = k_values(&job.grid.k);
+    if ks.is_empty() {
+        return Err(bad("grid.k", "the list of k values is empty".into()));
+    }
+    if let Some(m) = ks.iter().find_map(|&k| check_k(k).err()) {
+        return Err(bad("grid.k", format!("k {m}")));
+    }
+    // Duplicates anywhere in the list (not only neighbours) would give two cells with the
+    // same (nB, nF, k) and two identical rows in the table.
+    let mut sorted = ks.clone();
+    sorted.sort_by(f64::total_cmp);
+    if let Some(w) = sorted.windows(2).find(|w| w[0] == w[1]) {
+        return Err(bad("grid.k", format!("k = {} appears twice", w[0])));
+    }
+    if let Some([lo, hi]) = job.band_hz {
+        check_band(lo, hi, job.data.ts.unwrap()).map_err(|m| bad("band_hz", format!("[{lo}, {hi}]: {m}")))?;
+    }
+    let s = &job.solver;
+    if s.max_iterations == 0 {
+        return Err(bad("solver.max_iterations", "must be at least 1".into()));
+    }
+    if s.explore_rows != 0 && s.explore_rows < MIN_EXPLORE_ROWS {
+        return Err(bad(
+            "solver.explore_rows",
+            format!("must be 0 (explore on the whole record) or at least {MIN_EXPLORE_ROWS}, got {}", s.explore_rows),
+        ));
+    }
+    for (name, v) in [
+        ("ftol", s.ftol),
+        ("xtol", s.xtol),
+        ("gtol", s.gtol),
+        ("lambda0", s.lambda0),
+        ("warm_lambda0", s.warm_lambda0),
+        ("huber_tol", s.huber_tol),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(bad(&format!("solver.{name}"), format!("must be a non-negative number, got {v}")));
+        }
+    }
+    let sel = &job.selection;
+    if !(sel.min_tolerance.is_finite() && sel.min_tolerance >= 0.0) {
+        return Err(bad("selection.min_tolerance", format!("must be >= 0, got {}", sel.min_tolerance)));
+    }
+    if !(sel.fit_tolerance.is_finite() && sel.fit_tolerance >= 0.0) {
+        return Err(bad("selection.fit_tolerance", format!("must be >= 0, got {}", sel.fit_tolerance)));
+    }
+    job.output = resolve(&base, &job.output);
+    check_output_folder(&job.output).map_err(|msg| bad("output", msg))?;
+    job.grid.k = KGrid::List(ks);
+    Ok(job)
+}
+
+/// Checks, without leaving a trace, that `out` is a folder `run` will be able to create or
+/// write into: a typo in `output` must fail in `plan`, before a night of estimation.
+///
+/// The nearest existing ancestor (the folder itself when it exists) must be a folder in which
+/// we can create an entry. That is tested by creating and at once removing a uniquely named
+/// empty probe folder, not with `access(W_OK)`: the permission bits are no answer for root
+/// (who may write almost anywhere, yet not under `/proc`), nor for read-only mounts, ACLs or
+/// full quotas on some file systems, and `libc` is not a dependency.
+fn check_output_folder(out: &Path) -> std::result::Result<(), String> {
+    use std::io::ErrorKind;
+    let mut existing = None;
+    for a in out.ancestors() {
+        match std::fs::metadata(a) {
+            Ok(m) => {
+                existing = Some((a, m));
+                break;
+            }
+            // NotADirectory: a component further up is a file; the loop reaches it.
+            Err(e) if matches!(e.kind(), ErrorKind::NotFound | ErrorKind::NotADirectory) => {}
+            Err(e) => return Err(format!("cannot access {}: {e}", a.display())),
+        }
+    }
+    let Some((dir, meta)) = existing else {
+        return Err(format!("{}: no part of this path exists", out.display()));
+    };
+    if !meta.is_dir() {
+        return Err(if dir == out {
+            format!("{} is a file, not a folder", out.display())
+        } else {
+            format!("cannot create {}: {} is a file, not a folder", out.display(), dir.display())
+        });
+    }
+    static PROBES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+    let probe = dir.join(format!(
+        ".oesweep-probe-{}-{nanos}-{}",
+        std::process::id(),
+        PROBES.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+    ));
+    match std::fs::create_dir(&probe) {
+        Ok(()) => {
+            // A probe that cannot be removed again would be a trace; say so rather than hide it.
+            std::fs::remove_dir(&probe).map_err(|e| format!("cannot remove the probe folder {}: {e}", probe.display()))
+        }
+        Err(e) if dir == out => Err(format!("cannot write into {} ({e})", out.display())),
+        Err(e) => Err(format!("cannot create {}: {} does not accept new folders ({e})", out.display(), dir.display())),
+    }
+}
