@@ -8,6 +8,8 @@ cd "$(dirname "$0")/.."
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/oesweep-target}"
 cargo build --release --quiet --bin oesweep
 bin="$CARGO_TARGET_DIR/release/oesweep"
+# README's command form: `cargo run` picks the `oesweep` binary (default-run), not the test one.
+cargo run --release --quiet -- --help > /dev/null
 
 work=$(mktemp -d /tmp/oesweep-release.XXXXXX)
 trap 'rm -rf "$work"' EXIT
