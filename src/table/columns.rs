@@ -303,6 +303,21 @@ mod tests {
     use super::*;
     use crate::table::RowKey;
 
+    /// README's column reference lists exactly the table's columns, in table order.
+    #[test]
+    fn table_readme_lists_the_columns_in_order() {
+        let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+        let section = readme.split("### Columns of cells.parquet").nth(1).expect("README has the column reference");
+        let listed: Vec<&str> = section
+            .lines()
+            .skip_while(|l| !l.starts_with('|'))
+            .take_while(|l| l.starts_with('|'))
+            .filter_map(|l| l.trim_start_matches('|').trim().strip_prefix('`')?.split('`').next())
+            .collect();
+        let names: Vec<&str> = COLUMNS.iter().map(|c| c.name).collect();
+        assert_eq!(listed, names, "README's \"Columns of cells.parquet\" against table::COLUMNS");
+    }
+
     #[test]
     fn table_columns_have_unique_names_and_roundtrip_through_get_and_set() {
         let mut names: Vec<&str> = COLUMNS.iter().map(|c| c.name).collect();
