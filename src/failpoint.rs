@@ -15,7 +15,10 @@
 //! - `pause_part:N:MARKER`: the checkpoint writer, right after its N-th part of this run is
 //!   durable, creates MARKER and waits until MARKER is deleted. No part is written while it
 //!   waits (and the run cannot end), so a test that kills the process then knows exactly which
-//!   rows were saved.
+//!   rows were saved;
+//! - `pause_merge:MARKER`: a whole run, once its result files are written and before it
+//!   deletes the checkpoint, creates MARKER and waits until MARKER is deleted: a kill there
+//!   leaves complete results beside a complete checkpoint.
 //!
 //! A pause also ends when the process receives SIGINT or SIGTERM: its own handler is
 //! registered after the run's [`crate::checkpoint::StopOnSignal`], so by the time a pause sees
@@ -36,6 +39,7 @@ mod hooks {
         Panic((usize, usize, usize)),
         PauseCell((usize, usize, usize), PathBuf),
         PausePart(u64, PathBuf),
+        PauseMerge(PathBuf),
     }
 
     fn cell(s: &str) -> Option<(usize, usize, usize)> {
@@ -52,6 +56,7 @@ mod hooks {
                 let (c, marker) = rest.split_once(':')?;
                 Some(Hook::PauseCell(cell(c)?, PathBuf::from(marker)))
             }
+            "pause_merge" => Some(Hook::PauseMerge(PathBuf::from(rest))),
             "pause_part" => {
                 let (n, marker) = rest.split_once(':')?;
                 Some(Hook::PausePart(n.trim().parse().ok()?, PathBuf::from(marker)))
@@ -143,6 +148,15 @@ pub fn before_cell(nb: usize, nf: usize, k_index: usize) {
     let _ = (nb, nf, k_index);
 }
 
+/// Called by a whole run between writing its result files and deleting its checkpoint.
+#[inline]
+pub fn before_checkpoint_removal() {
+    #[cfg(feature = "failpoints")]
+    if let Some(hooks::Hook::PauseMerge(marker)) = hooks::hook() {
+        hooks::pause(marker, false);
+    }
+}
+
 /// Called by the checkpoint writer once its `n`-th part of this run (1-based) is durable.
 #[inline]
 pub fn after_part(n: u64) {
@@ -166,6 +180,7 @@ mod tests {
         assert_eq!(parse("panic:2,2,1"), Some(Hook::Panic((2, 2, 1))));
         assert_eq!(parse("pause_cell:5, 4,0:/tmp/a:b"), Some(Hook::PauseCell((5, 4, 0), PathBuf::from("/tmp/a:b"))));
         assert_eq!(parse("pause_part:1:/tmp/m"), Some(Hook::PausePart(1, PathBuf::from("/tmp/m"))));
+        assert_eq!(parse("pause_merge:/tmp/m"), Some(Hook::PauseMerge(PathBuf::from("/tmp/m"))));
         for bad in ["panic:2,2", "panic:2,2,1,4", "pause_part:x:/m", "pause_cell:1,1,1", "stop:1", ""] {
             assert_eq!(parse(bad), None, "{bad}");
         }

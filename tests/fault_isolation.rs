@@ -12,16 +12,14 @@ mod common;
 
 use oesweep::export::parquet::read_cells;
 
+use std::path::Path;
 use std::process::Command;
 
-#[test]
-fn a_panicking_cell_becomes_a_failed_row_and_the_sweep_goes_on() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
+/// An OE(2,2) record and a 2 x 2 x 2 job over it (`job.json`, output `out`) in `d`.
+fn small_job(d: &Path) {
     let (b, f) = common::oe22();
     std::fs::write(d.join("sys.json"), serde_json::json!({"b": b, "f": f, "delay": 1}).to_string()).unwrap();
-    let bin = env!("CARGO_BIN_EXE_oesweep");
-    let o = Command::new(bin)
+    let o = Command::new(env!("CARGO_BIN_EXE_oesweep"))
         .args(["simulate", "--system", "sys.json", "--out", "est.csv", "--n", "1500", "--noise-std", "0.05"])
         .current_dir(d)
         .output()
@@ -32,6 +30,13 @@ fn a_panicking_cell_becomes_a_failed_row_and_the_sweep_goes_on() {
         "grid": {"nb": [1, 2], "nf": [1, 2], "k": [0.1, 1.0]}, "output": "out"
     });
     std::fs::write(d.join("job.json"), job.to_string()).unwrap();
+}
+
+#[test]
+fn a_panicking_cell_becomes_a_failed_row_and_the_sweep_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    small_job(d);
     let o = Command::new(env!("CARGO_BIN_EXE_oesweep-testhooks"))
         .args(["run", "job.json", "--quiet"])
         .env("OESWEEP_FAILPOINT", "panic:2,2,1")
@@ -60,21 +65,8 @@ fn a_panicking_cell_becomes_a_failed_row_and_the_sweep_goes_on() {
 fn the_oesweep_binary_ignores_the_failpoint_variable() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (b, f) = common::oe22();
-    std::fs::write(d.join("sys.json"), serde_json::json!({"b": b, "f": f, "delay": 1}).to_string()).unwrap();
-    let bin = env!("CARGO_BIN_EXE_oesweep");
-    let o = Command::new(bin)
-        .args(["simulate", "--system", "sys.json", "--out", "est.csv", "--n", "1500", "--noise-std", "0.05"])
-        .current_dir(d)
-        .output()
-        .unwrap();
-    assert!(o.status.success());
-    let job = serde_json::json!({
-        "name": "honest", "data": {"path": "est.csv", "ts": 1e-3},
-        "grid": {"nb": [1, 2], "nf": [1, 2], "k": [0.1, 1.0]}, "output": "out"
-    });
-    std::fs::write(d.join("job.json"), job.to_string()).unwrap();
-    let o = Command::new(bin)
+    small_job(d);
+    let o = Command::new(env!("CARGO_BIN_EXE_oesweep"))
         .args(["run", "job.json", "--quiet"])
         .env("OESWEEP_FAILPOINT", "panic:2,2,1")
         .current_dir(d)

@@ -4,9 +4,10 @@
 //! (exit 2) unless --force; one run per output folder. Unix only: the tests send signals.
 //!
 //! Nothing here depends on timing. The states the tests assert on are reached through the
-//! pause points of the `failpoints` build (src/failpoint.rs), which the test suite enables: a
-//! test waits until the binary says it is paused (a marker file), then kills or signals it.
-//! The kills at random instants that remain assert only what holds at every instant.
+//! pause points of the `oesweep-testhooks` binary (src/failpoint.rs): a test waits until the
+//! binary says it is paused (a marker file), then kills or signals it. Every kill lands at
+//! such a point (after a chosen checkpoint part, between the result files and the deletion of
+//! the checkpoint), never at a moment chosen by a clock.
 #![cfg(unix)]
 
 mod common;
@@ -155,12 +156,10 @@ fn partial_pairs(parts: &Path) -> usize {
     per_pair.values().filter(|&&n| n < KS).count()
 }
 
-/// Run a job to completion, returning the wall time.
-fn reference(job: &Path) -> f64 {
-    let t = Instant::now();
+/// Run a job to completion.
+fn reference(job: &Path) {
     let o = oesweep(&["run", job.to_str().unwrap(), "--threads", "2", "--quiet"]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
-    t.elapsed().as_secs_f64()
 }
 
 /// Run (or resume) `job` until its checkpoint writer has made its first part durable, and
@@ -180,7 +179,7 @@ fn kill_and_resume(start: &str) {
     let dir = tempfile::tempdir().unwrap();
     make_data(dir.path());
     let reference_job = write_job(dir.path(), "ref.json", "est.csv", start, KS, "ref");
-    let secs = reference(&reference_job);
+    reference(&reference_job);
     let expected = table(&dir.path().join("ref/cells.parquet"));
     assert_eq!(expected.len(), PAIRS + CELLS);
 
@@ -202,44 +201,28 @@ fn kill_and_resume(start: &str) {
     kill_after_one_part(&job, &marker);
     assert_eq!(saved_rows(&parts), 2 * BATCH_ROWS);
 
-    // Kills at random instants (parts every 0.2 s): wherever they land, the checkpoint only
-    // grows and never holds a cell twice (`saved_rows` checks), and the run that completes
-    // merges it into the uninterrupted table.
-    let mut rng = common::Lcg(0x5eed ^ start.len() as u64);
-    let mut saved_before = 2 * BATCH_ROWS;
-    let mut completed = None;
-    for _ in 0..3 {
-        let mut child = spawn_run(&job, &["--checkpoint-every", "0.2"], None);
-        std::thread::sleep(Duration::from_secs_f64(secs * 0.5 * rng.next()));
-        if child.try_wait().unwrap().is_some() {
-            completed = Some(child.wait_with_output().unwrap());
-            break;
-        }
-        child.kill().unwrap();
-        wait_at_most(&mut child, Duration::from_secs(600));
-        if !parts.exists() {
-            // Killed after the merge had deleted the checkpoint: the results are complete.
-            break;
-        }
-        let saved = saved_rows(&parts);
-        assert!(saved >= saved_before, "the checkpoint lost rows ({saved_before} -> {saved})");
-        saved_before = saved;
-    }
-    if parts.exists() {
-        // Not finished yet, or killed after writing cells.parquet but before deleting the
-        // checkpoint: a rerun resumes every saved cell and merges again.
-        let o = completed.unwrap_or_else(|| {
-            let mut child = spawn_run(&job, &[], None);
-            wait_at_most(&mut child, Duration::from_secs(600));
-            child.wait_with_output().unwrap()
-        });
-        assert_eq!(o.status.code(), Some(0), "{}", text(&o));
-        assert!(String::from_utf8_lossy(&o.stdout).contains("resumed from the checkpoint"), "{}", text(&o));
-        assert!(!parts.exists(), "the checkpoint is deleted after the merge");
-    } else if let Some(o) = completed {
-        assert_eq!(o.status.code(), Some(0), "{}", text(&o));
-        assert!(String::from_utf8_lossy(&o.stdout).contains("resumed from the checkpoint"), "{}", text(&o));
-    }
+    // And a third time: the checkpoint only grows and never holds a cell twice (`saved_rows`
+    // checks); 174 rows are left.
+    kill_after_one_part(&job, &marker);
+    assert_eq!(saved_rows(&parts), 3 * BATCH_ROWS);
+    const { assert!(3 * BATCH_ROWS < PAIRS + CELLS) };
+
+    // Killed after the result files are written but before the checkpoint is deleted: the
+    // results are complete, and a rerun resumes every saved cell and merges again.
+    let failpoint = format!("pause_merge:{}", marker.display());
+    let mut child = spawn_run(&job, &[], Some(&failpoint));
+    wait_for_pause(&mut child, &marker);
+    assert!(out.join("cells.parquet").exists() && parts.exists());
+    child.kill().unwrap();
+    wait_at_most(&mut child, Duration::from_secs(600));
+    std::fs::remove_file(&marker).unwrap();
+    assert!(table(&out.join("cells.parquet")) == expected, "start = {start}: the results before the kill");
+    let mut child = spawn_run(&job, &[], None);
+    wait_at_most(&mut child, Duration::from_secs(600));
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("resumed from the checkpoint"), "{}", text(&o));
+    assert!(!parts.exists(), "the checkpoint is deleted after the merge");
     let got = table(&out.join("cells.parquet"));
     assert_eq!(got.len(), PAIRS + CELLS);
     assert!(got == expected, "start = {start}: the resumed table differs from the uninterrupted one");

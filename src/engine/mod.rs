@@ -297,6 +297,7 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
     // A whole run: the results, then the checkpoint has served (if deleting it fails, a rerun
     // finds every cell done and merges again), then the report.
     let selection = write_results(&out, &p.job, &outcome.rows, Some(&p.inputs))?;
+    crate::failpoint::before_checkpoint_removal();
     result.cleanup = checkpoint::remove(&out).err();
     let report = opts.report.then(|| crate::report::write_report(&out));
     result.end = RunEnd::Merged { selection: Box::new(selection), report };
