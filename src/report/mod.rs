@@ -497,11 +497,14 @@ fn files_section() -> Section {
     Section {
         id: "files",
         heading: "Result files".into(),
-        intro_html: "<ul>\n<li><a href=\"cells.parquet\">cells.parquet</a>: one row per Huber cell and per \
-                     least-squares fit (columns in the README)</li>\n<li><a href=\"selection.json\">selection.json</a>: \
-                     the picks, their rules and candidate lists</li>\n<li><a href=\"job.json\">job.json</a>: the job as \
-                     run</li>\n</ul>\n"
-            .into(),
+        intro_html: format!(
+            "<ul>\n<li><a href=\"{cells}\">{cells}</a>: one row per Huber cell and per least-squares fit \
+             (columns in the README)</li>\n<li><a href=\"{selection}\">{selection}</a>: the picks, their rules and \
+             candidate lists</li>\n<li><a href=\"{job}\">{job}</a>: the job as run</li>\n</ul>\n",
+            cells = crate::export::CELLS_FILE,
+            selection = crate::export::SELECTION_FILE,
+            job = crate::export::JOB_FILE,
+        ),
         figures: vec![],
         notes: vec![],
     }
