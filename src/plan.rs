@@ -6,7 +6,7 @@
 //! sub-models' fits (METHOD.md 5.2), so the pairs are fitted in waves of nB + nF; the pair is
 //! the unit that owns its least-squares fit and the cells of a pair share it.
 
-use crate::job::{self, Job, StartStrategy, ValidJob};
+use crate::job::{StartStrategy, ValidJob};
 
 pub use crate::oe::Structure;
 
@@ -70,22 +70,6 @@ impl Plan {
             pairs: pairs(&job.nb, &job.nf, &job.delays),
             ks: job.ks.clone(),
             start: job.job.start,
-            ls_support: Vec::new(),
-        }
-    }
-
-    /// The plan of a job that was validated before (the job file a run leaves in its
-    /// checkpoint, read back by `oesweep merge`): the same plan as [`Plan::from_job`] gave then,
-    /// without the checks and the file system access of validation.
-    pub fn from_normalised(job: &Job) -> Plan {
-        let ([b0, b1], [f0, f1]) = (job.grid.nb, job.grid.nf);
-        let [d0, d1] = job.grid.delay.unwrap_or([job.delay.unwrap_or(job::DEFAULT_DELAY); 2]);
-        let (nb, nf, delays): (Vec<usize>, Vec<usize>, Vec<usize>) =
-            ((b0..=b1).collect(), (f0..=f1).collect(), (d0..=d1).collect());
-        Plan {
-            pairs: pairs(&nb, &nf, &delays),
-            ks: job::k_values(&job.grid.k),
-            start: job.start,
             ls_support: Vec::new(),
         }
     }
