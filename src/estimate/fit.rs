@@ -128,6 +128,9 @@ pub struct LsFit {
     pub f: Vec<f64>,
     /// The estimated output offset c (None when the model has none, [`Problem::offset`]).
     pub offset: Option<f64>,
+    /// AIC, AICc, BIC and FPE of this fit ([`super::criteria`]).
+    #[serde(flatten)]
+    pub criteria: super::criteria::Criteria,
     /// Further starts for the Huber phase (see [`fit_huber_multi`]): the least-squares
     /// solutions reached from the other initial guesses, and theta_LS with its poles pulled
     /// to radius 0.99 when it ended on the stability boundary. Deterministic, so a resumed
@@ -259,6 +262,8 @@ fn ls_fit(prob: &Problem, sol: Solution, judge: &Judge, ws: &mut Workspace) -> L
         b: b.to_vec(),
         f: f.to_vec(),
         offset: prob.offset.then_some(c),
+        // V = (1/N) sum e^2 = 2 criterion, over every estimated parameter.
+        criteria: super::criteria::least_squares(2.0 * sol.criterion, prob.n(), prob.dim()),
         alternatives: Vec::new(),
     }
 }

@@ -12,6 +12,7 @@
 //!
 //! ```text
 //! options        settings, Termination                         (none)
+//! criteria       AIC, AICc, BIC, FPE of a least-squares fit     (none)
 //! linalg         Cholesky of the normal equations              (none)
 //! huber          rho, psi, L1C                                  (none)
 //! normal         normal equations from lagged correlations     kernels
@@ -28,6 +29,7 @@
 //! ```
 
 pub mod chains;
+pub mod criteria;
 pub mod evidence;
 pub mod fit;
 pub mod huber;

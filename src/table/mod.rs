@@ -147,6 +147,12 @@ pub struct Fit {
     /// The model's output offset in the data's units: estimated c, or the level taken out
     /// (`offset` "mean"/"median"); null for "none" ([`crate::data::levels`]).
     pub offset: Option<f64>,
+    /// Information criteria of a least-squares fit as MATLAB defines them
+    /// ([`crate::estimate::criteria`]; null for `huber` rows).
+    pub aic: Option<f64>,
+    pub aicc: Option<f64>,
+    pub bic: Option<f64>,
+    pub fpe: Option<f64>,
 }
 
 /// A result row (see the module documentation; columns in [`COLUMNS`]).
@@ -240,6 +246,10 @@ impl CellRow {
         };
         let mut row = Self::of_fit(RowKey::ls(&pair), None, fitted, ls.ok(), "least-squares", StartKind::Init, seconds);
         row.fit.sigma = Some(ls.sigma).filter(|v| v.is_finite());
+        let finite = |v: f64| Some(v).filter(|v| v.is_finite());
+        let c = ls.criteria;
+        (row.fit.aic, row.fit.aicc, row.fit.bic, row.fit.fpe) =
+            (finite(c.aic), finite(c.aicc), finite(c.bic), finite(c.fpe));
         row
     }
 
