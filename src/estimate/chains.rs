@@ -64,8 +64,8 @@ impl Chains {
     pub const SLOW_ITERATIONS: usize = 50;
     /// A creeping chain is fitted only at the steps whose index (from 0, the first cell) is a
     /// multiple of this, and holds its point in between (see [`Chains::step`]): creeping
-    /// iterations 10 419 -> 3 576 on the paper grid with the same quality against the peer;
-    /// a longer period loses the minima that move with k (issue 19, commit 0de824f).
+    /// iterations 10 419 -> 3 576 on the paper grid with the same quality against the peer
+    /// (issue 19, commit 0de824f); no other period was measured.
     pub const CREEP_PERIOD: usize = 4;
 
     /// Chains from `theta_ls` (chain 0) and each of `alternatives`.

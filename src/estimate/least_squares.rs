@@ -152,9 +152,9 @@ const DAMPED_LAMBDA0: f64 = 1.0;
 /// k of the robust detours of the least-squares phase (see [`ls_minima`]): a Huber fit at
 /// gamma = k sigma from the best start, then least squares from there, escapes the poor minima
 /// spikes pull a least-squares fit into. Two detours are what hold the least-squares fits at
-/// 96 of 96 against the scipy peer on the paper grid; without the k = 0.1 one 8 fits end
-/// higher (up to 0.22 %), without the k = 0.5 one 6 end higher and 363 Huber cells move
-/// (issue 19, commit 63cbb84; docs/PERFORMANCE.md).
+/// 96 of 96 against the scipy peer on the paper grid: dropping one left 6 to 8 of the 96 fits
+/// higher (up to 0.22 %; without the k = 0.5 one, 6 fits higher and 363 Huber cells moved,
+/// issue 19, commit 63cbb84; docs/PERFORMANCE.md).
 const ROBUST_START_K: [f64; 2] = [0.5, 0.1];
 /// Pole radius above which a least-squares fit counts as on the stability boundary: there the
 /// Huber fit cannot move the near-unit pole (1/F has an almost infinite memory), so the fit
@@ -163,7 +163,7 @@ const ROBUST_START_K: [f64; 2] = [0.5, 0.1];
 const BOUNDARY: f64 = 0.999;
 /// Radius the poles of a boundary fit are scaled to for that extra start: inside enough that
 /// the Huber fit moves freely, close enough to stay in the basin of theta_LS. Dropping the
-/// start saved only 6-10 % of the Huber phase and lost cells against the peer (issue 19).
+/// start saved only 6-10 % of the Huber phase (issue 19); no other radius was measured.
 const CONTRACTED: f64 = 0.99;
 /// Least-squares minima whose criteria differ by less than this (relative) are one minimum:
 /// well above the solver's `ftol` (1e-10), so two runs that converged to the same minimum
