@@ -117,9 +117,11 @@ mod hooks {
         PAUSED.store(false, Ordering::SeqCst);
     }
 
-    /// Wait while another worker's `pause_cell` pause lasts.
-    pub(super) fn wait_if_paused(marker: &Path) {
-        while PAUSED.load(Ordering::SeqCst) && !released(marker) {
+    /// Wait while another worker's `pause_cell` pause lasts. On the flag, not the marker: the
+    /// pausing worker raises it before it creates the marker, and a worker that looked at the
+    /// marker in between would see none and go on.
+    pub(super) fn wait_if_paused() {
+        while PAUSED.load(Ordering::SeqCst) {
             std::thread::sleep(std::time::Duration::from_millis(2));
         }
     }
@@ -141,7 +143,7 @@ pub fn before_cell(nb: usize, nf: usize, k_index: usize) {
             panic!("failpoint OESWEEP_FAILPOINT hit at OE({nb},{nf}) k index {k_index}")
         }
         Some(hooks::Hook::PauseCell(c, marker)) if *c == (nb, nf, k_index) => hooks::pause(marker, true),
-        Some(hooks::Hook::PauseCell(_, marker)) => hooks::wait_if_paused(marker),
+        Some(hooks::Hook::PauseCell(..)) => hooks::wait_if_paused(),
         _ => {}
     }
     #[cfg(not(feature = "failpoints"))]
