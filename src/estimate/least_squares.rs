@@ -100,7 +100,7 @@ fn ranked(sols: &[Solution]) -> (&Solution, Vec<&Solution>) {
 /// robust detours, and from each `nested` start.
 ///
 /// Without nested starts each guess also runs with heavy initial damping. With them that run
-/// no longer pays (issue 19, third session): on the paper grid it was never the only run to
+/// no longer pays (issue 19, commit 1b1b605): on the paper grid it was never the only run to
 /// reach a pair's minimum, and dropping it kept the quality against the scipy peer (L2 96/96
 /// on both records; Huber 760 and 763 of 768 against 761 and 762) for 2 fewer minimisations
 /// per pair. (Dropping the first detour too saved as much again but left 8 of the paper
