@@ -186,6 +186,9 @@ pub struct HuberFit {
     pub f: Vec<f64>,
     /// The estimated output offset c (None when the model has none).
     pub offset: Option<f64>,
+    /// Robust AIC and BIC of this fit ([`super::criteria::robust`]).
+    #[serde(flatten)]
+    pub criteria: super::criteria::Robust,
 }
 
 impl HuberFit {
@@ -222,6 +225,7 @@ pub(crate) fn huber_from_solution(
         b: b.to_vec(),
         f: f.to_vec(),
         offset: prob.offset.then(|| prob.split(&sol.theta).2),
+        criteria: super::criteria::robust(prob.y, ws.yhat(), k, prob.dim()),
     }
 }
 

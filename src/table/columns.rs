@@ -242,6 +242,8 @@ pub const COLUMNS: &[Column] = &[
     column!(optional "aicc", Option<f64>, |r| r.fit.aicc),
     column!(optional "bic", Option<f64>, |r| r.fit.bic),
     column!(optional "fpe", Option<f64>, |r| r.fit.fpe),
+    column!(optional "raic", Option<f64>, |r| r.fit.raic),
+    column!(optional "rbic", Option<f64>, |r| r.fit.rbic),
 ];
 
 /// The column called `name`.

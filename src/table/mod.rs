@@ -153,6 +153,10 @@ pub struct Fit {
     pub aicc: Option<f64>,
     pub bic: Option<f64>,
     pub fpe: Option<f64>,
+    /// Robust AIC and BIC of a Huber fit ([`crate::estimate::criteria::robust`]; null for `ls`
+    /// rows).
+    pub raic: Option<f64>,
+    pub rbic: Option<f64>,
 }
 
 /// A result row (see the module documentation; columns in [`COLUMNS`]).
@@ -278,6 +282,8 @@ impl CellRow {
         row.fit.sigma = Some(sigma);
         row.fit.gamma = Some(h.gamma);
         row.fit.l1c = Some(h.l1c);
+        let finite = |v: f64| Some(v).filter(|v| v.is_finite());
+        (row.fit.raic, row.fit.rbic) = (finite(h.criteria.raic), finite(h.criteria.rbic));
         row
     }
 
