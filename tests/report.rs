@@ -102,6 +102,7 @@ fn report_writes_page_and_every_linked_figure() {
     assert!(text(&o).contains("report.html"), "{}", text(&o));
     let figures = check_report(&out);
     let expected = [
+        "report-criteria-np.svg",
         "report-w-nf.svg",
         "report-l1c-nf.svg",
         "report-heat-k00.svg",
@@ -117,6 +118,12 @@ fn report_writes_page_and_every_linked_figure() {
     ];
     assert_eq!(figures, expected);
     assert!(!out.join("report-heat-k99.svg").exists(), "stale figure kept");
+    // Every pick rule has its row in the rules table, the lead rule marked.
+    let page = std::fs::read_to_string(out.join("report.html")).unwrap();
+    for rule in ["paper_m1", "paper_m2", "aic", "aicc", "bic", "fpe", "raic", "rbic", "validation", "evidence"] {
+        assert!(page.contains(&format!("<b>{rule}</b>")), "no row for {rule}");
+    }
+    assert!(page.contains("<b>paper_m2</b> (lead)"));
 
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     // The picks table names the true orders (the sweep test checks the picks are OE(2,2)).

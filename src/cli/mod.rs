@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::estimate::SolverOptions;
 use crate::shard;
 use crate::simulate;
-use print::{describe_grid, print_fit_summary, print_layout, print_picks, print_report};
+use print::{describe_grid, print_fit_summary, print_layout, print_picks, print_report, print_rules};
 
 /// The whole command line: parse the arguments, run the command, print an error as one line
 /// and map it to the exit code (0 success, 1 failure of the work itself, 2 bad input).
@@ -236,6 +236,7 @@ fn run_job(a: &RunArgs) -> Result<u8> {
             }
             println!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
             print_picks(selection);
+            print_rules(selection);
             println!("results in {}", o.out.display());
             if let Some(e) = &o.cleanup {
                 eprintln!("warning: {e}");
@@ -302,6 +303,7 @@ fn run_merge(a: &MergeArgs) -> Result<u8> {
                 plan.pairs.len()
             );
             print_picks(selection);
+            print_rules(selection);
             println!("results in {}", out.display());
             if m.missing.is_empty() {
                 if let Some(e) = &m.cleanup {

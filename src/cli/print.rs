@@ -115,6 +115,36 @@ pub(super) fn print_picks(selection: &reduce::Selection) {
     }
 }
 
+/// Every pick rule's model, the lead rule first marked with `*` (selection.json's `picks`).
+pub(super) fn print_rules(selection: &reduce::Selection) {
+    if selection.picks.is_empty() {
+        return;
+    }
+    let basis = selection.basis.column();
+    println!("{:<12}{:<22}{:>8}{:>24}{:>12}{:>10}{:>8}", "rule", "model", "k", "value", basis, "indep p", "cancel");
+    for (rule, pick) in &selection.picks {
+        let lead = if *rule == selection.rule { "*" } else { " " };
+        let Some(m) = &pick.model else {
+            println!("{lead}{:<11}none: {}", rule.as_str(), pick.why);
+            continue;
+        };
+        let k = m.row.k.map_or("-".to_string(), |k| format!("{k}"));
+        let value = pick.value.map_or("-".to_string(), |v| format!("{} {v:.6}", pick.measure));
+        let score = Some(m.score).filter(|v| v.is_finite());
+        println!(
+            "{lead}{:<11}{:<22}{:>8}{:>24}{:>12}{:>10}{:>8}",
+            rule.as_str(),
+            format!("OE({},{}) delay {}", m.key.nb, m.key.nf, m.key.delay),
+            k,
+            value,
+            opt_pct(score),
+            m.evidence.resid_indep_p.map_or("-".to_string(), |p| format!("{p:.3}")),
+            m.evidence.cancellations.map_or("-".to_string(), |c| c.to_string()),
+        );
+    }
+    println!("(* the rule the summary leads with; every rule's reason is in selection.json's picks)");
+}
+
 /// The page of a report, or its error after the summary was printed.
 pub(super) fn print_report(report: Option<Result<PathBuf>>) -> Result<()> {
     if let Some(page) = report {

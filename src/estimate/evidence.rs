@@ -50,6 +50,9 @@ pub struct Evidence {
     /// computed).
     pub resid_white_p: Option<f64>,
     pub resid_indep_p: Option<f64>,
+    /// Zeros that cancel a pole within the 95 % region of their difference
+    /// ([`super::cancellation`]; None: not computed, or the covariance is singular).
+    pub cancellations: Option<u32>,
 }
 
 /// Buffers of [`evidence`], one per worker (in the solver's [`super::Workspace`]): the robust
@@ -103,6 +106,8 @@ pub fn evidence(
     let slope = slope(prob, loss, yhat);
     let d = prob.dim();
     let cov = covariance_in(prob, xu, xy, slope, s);
+    let (tb, tf, _) = prob.split(theta);
+    let cancellations = cov.as_ref().and_then(|c| super::cancellation::cancelling_pairs(tb, tf, c, d));
     let std: Vec<f64> = match cov {
         Some(cov) => (0..d)
             .map(|i| {
@@ -131,6 +136,7 @@ pub fn evidence(
         max_rel_std: Some(max_rel_std).filter(|v| !v.is_nan()),
         resid_white_p: Some(whiteness_p(&s.e)).filter(|v| v.is_finite()),
         resid_indep_p: Some(independence_p(&s.e, &s.uc, &s.ruu)).filter(|v| v.is_finite()),
+        cancellations,
     }
 }
 

@@ -12,7 +12,8 @@
 //!
 //! ```text
 //! options        settings, Termination                         (none)
-//! criteria       AIC, AICc, BIC, FPE of a least-squares fit     (none)
+//! criteria       AIC, AICc, BIC, FPE; robust AIC, BIC           huber
+//! cancellation   pole-zero pairs within their confidence       oe
 //! linalg         Cholesky of the normal equations              (none)
 //! huber          rho, psi, L1C                                  (none)
 //! normal         normal equations from lagged correlations     kernels
@@ -20,7 +21,7 @@
 //! initial_state  free response, model output                   linalg
 //! initial_guess  ARX + IV starts                                problem
 //! separable      variable projection inner problem             problem, linalg, normal, huber
-//! evidence       covariance, residual tests                    problem, normal, huber
+//! evidence       covariance, residual tests                    problem, normal, huber, cancellation
 //! workspace      per-worker buffers                            problem, normal, separable, evidence
 //! solver         Levenberg-Marquardt                           all of the above
 //! fit            LsFit, HuberFit, assessment                   solver, evidence, initial_state
@@ -28,6 +29,7 @@
 //! chains         step 3 over k: continuation chains            fit, least_squares, solver
 //! ```
 
+pub mod cancellation;
 pub mod chains;
 pub mod criteria;
 pub mod evidence;

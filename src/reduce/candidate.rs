@@ -14,7 +14,8 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Debug)]
 pub struct Candidate {
     pub row: CellRow,
-    /// The fit that ranks candidates (the basis column).
+    /// The fit that ranks candidates (the basis column; NaN, null in JSON, for a rule's pick
+    /// that has none).
     pub score: f64,
 }
 
@@ -28,7 +29,7 @@ impl std::ops::Deref for Candidate {
 /// Equal as `selection.json` shows them: the wall time is not part of a candidate.
 impl PartialEq for Candidate {
     fn eq(&self, other: &Self) -> bool {
-        self.score == other.score
+        self.score.total_cmp(&other.score).is_eq()
             && crate::table::COLUMNS
                 .iter()
                 .filter(|c| c.reproducible)
@@ -46,8 +47,11 @@ impl<'de> Deserialize<'de> for Candidate {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         use serde::de::Error;
         let obj = serde_json::Map::<String, serde_json::Value>::deserialize(d)?;
-        let score =
-            obj.get("score").and_then(serde_json::Value::as_f64).ok_or_else(|| D::Error::missing_field("score"))?;
+        // A null score (a rule's pick without a fit in the basis) reads back as NaN.
+        let score = match obj.get("score") {
+            Some(serde_json::Value::Null) => f64::NAN,
+            v => v.and_then(serde_json::Value::as_f64).ok_or_else(|| D::Error::missing_field("score"))?,
+        };
         // Files of older versions hold only some columns; a candidate is an ok Huber row (rule 1).
         let key = RowKey { kind: FitKind::Huber, delay: 0, nb: 0, nf: 0, k_index: None };
         let base = CellRow { status: Status::Ok, ..CellRow::empty(key) };

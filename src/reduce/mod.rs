@@ -42,9 +42,11 @@
 //! Defaults: `min_tolerance = 1e-3`, `fit_tolerance = 0.05` points.
 
 mod candidate;
+pub mod rules;
 
 use crate::table::CellRow;
 pub use candidate::Candidate;
+pub use rules::{Rule, RulePick};
 use serde::{Deserialize, Serialize};
 use std::cmp::Ordering;
 use std::collections::BTreeMap;
@@ -169,6 +171,16 @@ pub struct Selection {
     /// What the user should know about the data (e.g. a large output mean with offset "none").
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// The rule the summary leads with ([`rules::DEFAULT_RULE`]).
+    #[serde(default = "default_rule")]
+    pub rule: Rule,
+    /// Every rule's pick ([`rules`]; empty in files of older versions).
+    #[serde(default)]
+    pub picks: BTreeMap<Rule, RulePick>,
+}
+
+fn default_rule() -> Rule {
+    rules::DEFAULT_RULE
 }
 
 /// The fit that ranks models: validation when a validation record was given, else the band fit
@@ -269,10 +281,14 @@ pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
         }
     }
 
+    let m1 = pick(&w_minima, opts, Curve::W);
+    let m2 = pick(&l1c_minima, opts, Curve::L1c);
     Selection {
         basis: opts.basis,
-        m1: pick(&w_minima, opts, Curve::W),
-        m2: pick(&l1c_minima, opts, Curve::L1c),
+        picks: rules::picks(rows, m1.as_ref(), m2.as_ref(), opts),
+        rule: rules::DEFAULT_RULE,
+        m1,
+        m2,
         cells,
         failed,
         min_tolerance: opts.min_tolerance,

@@ -36,9 +36,11 @@
 //!    is one (paper Fig. 14), with the errors y - ŷ below: the outputs overlap at this scale, the
 //!    errors show how much the spikes pulled the least-squares model and not the Huber model.
 //!
-//! and tables: the picks with gamma, sigma, W, L1C, the three fits, pole radius and convergence,
-//! the least-squares fits of the same orders, the parameters b and f (paper Tables 2 and 3), the
-//! reducer's rule sentence and best candidates, and links to the result files.
+//! 8. **Every pick rule and the information criteria against nB + nF** (`rules.rs`).
+//!
+//! and tables: the picks with gamma, sigma, W, L1C, fits, pole radius and convergence, the
+//! least-squares fits of the same orders, b and f (paper Tables 2, 3), the reducer's rule
+//! sentence and best candidates, every rule's pick, and links to the result files.
 //!
 //! The figures are SVG files named `report-*.svg` beside `report.html`; the page links them by
 //! relative paths and loads nothing from the network, so the folder can be opened offline,
@@ -51,6 +53,7 @@
 mod figures;
 mod html;
 mod plot;
+mod rules;
 
 use crate::data::Record;
 use crate::error::{Error, Result};
@@ -237,7 +240,7 @@ fn build_sections(s: &Review) -> Result<Vec<Section>> {
     let m1 = sel.m1.as_ref().map(|p| Picked { name: "M1", model: &p.model, colour: plot::M1_COLOUR });
     let m2 = sel.m2.as_ref().map(|p| Picked { name: "M2", model: &p.model, colour: plot::M2_COLOUR });
     let grid = GridView::of(s, m2.or(m1));
-    let mut sections = vec![picks_section(s, m1, m2)];
+    let mut sections = vec![picks_section(s, m1, m2), rules::rules_section(s)?];
     sections.push(curves_section(s, &grid, m1, m2)?);
     sections.push(maps_section(s, &grid, m1, m2)?);
     sections.push(bode_section(s, m1, m2)?);

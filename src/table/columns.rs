@@ -238,6 +238,7 @@ pub const COLUMNS: &[Column] = &[
     column!(optional "max_rel_std", Option<f64>, |r| r.evidence.max_rel_std),
     column!(optional "resid_white_p", Option<f64>, |r| r.evidence.resid_white_p),
     column!(optional "resid_indep_p", Option<f64>, |r| r.evidence.resid_indep_p),
+    column!(optional "cancellations", Option<u32>, |r| r.evidence.cancellations),
     column!(optional "aic", Option<f64>, |r| r.fit.aic),
     column!(optional "aicc", Option<f64>, |r| r.fit.aicc),
     column!(optional "bic", Option<f64>, |r| r.fit.bic),

@@ -6,6 +6,7 @@ use crate::reduce::Candidate;
 use plotters::prelude::*;
 
 mod bode;
+mod criteria;
 mod curve;
 mod heat;
 mod output;
@@ -14,6 +15,7 @@ mod resid_corr;
 mod residuals;
 
 pub use bode::bode_figure;
+pub use criteria::criteria_figure;
 pub use curve::curve_figure;
 pub use heat::heat_figure;
 pub use output::output_figure;
