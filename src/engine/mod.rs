@@ -316,6 +316,7 @@ fn write_results(out: &Path, job: &ValidJob, rows: &[CellRow], inputs: Option<&I
         fit_tolerance: settings.fit_tolerance,
     };
     let mut selection = reduce::select(rows, &sel_opts);
+    selection.rule = settings.rule;
     selection.offset = Some(job.job.offset);
     selection.input_level = inputs.map(|i| i.levels.u0);
     selection.initial_state = Some(job.job.initial_state);

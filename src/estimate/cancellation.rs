@@ -40,26 +40,33 @@ pub fn cancelling_pairs(b: &[f64], f: &[f64], cov: &[f64], d: usize) -> Option<u
     if zeros.len() != b.len() - 1 || poles.len() != f.len() {
         return None;
     }
+    // Each root's gradient w (re and im parts as d-vectors, zero outside its polynomial) and
+    // C w once, so that a pair's 2 x 2 covariance is a few dot products:
+    // S(p - r) = w_p^T C w_p + w_r^T C w_r - w_p^T C w_r - w_r^T C w_p, per part.
+    let lift = |grad: Vec<(f64, f64)>, at: usize| -> Parts {
+        let mut re = vec![0.0; d];
+        let mut im = vec![0.0; d];
+        for (i, g) in grad.into_iter().enumerate() {
+            re[at + i] = g.0;
+            im[at + i] = g.1;
+        }
+        let times = |v: &[f64]| (0..d).map(|i| (0..d).map(|j| cov[i * d + j] * v[j]).sum()).collect();
+        Parts { c_re: times(&re), c_im: times(&im), re, im }
+    };
+    let pole_parts: Vec<Parts> = poles.iter().map(|&p| lift(root_gradient_monic(f, p), b.len())).collect();
     let mut count = 0;
     for &r in zeros.iter().filter(|r| r.1 >= -REAL * r.0.hypot(r.1)) {
-        let dr = root_gradient(b, r);
-        let cancels = poles.iter().any(|&p| {
-            let dp = root_gradient_monic(f, p);
-            // w = dp/dtheta - dr/dtheta: b-entries from the zero, f-entries from the pole.
-            let w = |i: usize| -> (f64, f64) {
-                if i < b.len() {
-                    (-dr[i].0, -dr[i].1)
-                } else if i < b.len() + f.len() {
-                    dp[i - b.len()]
-                } else {
-                    (0.0, 0.0)
-                }
+        let zr = lift(root_gradient(b, r), 0);
+        let cancels = poles.iter().zip(&pole_parts).any(|(&p, pp)| {
+            let s = |a: fn(&Parts) -> (&[f64], &[f64]), c: fn(&Parts) -> (&[f64], &[f64])| {
+                let dot = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(u, v)| u * v).sum::<f64>();
+                dot(a(pp).0, c(pp).1) + dot(a(&zr).0, c(&zr).1) - dot(a(pp).0, c(&zr).1) - dot(a(&zr).0, c(pp).1)
             };
-            let quad = |a: &dyn Fn(usize) -> f64, c: &dyn Fn(usize) -> f64| -> f64 {
-                (0..d).map(|i| a(i) * (0..d).map(|j| cov[i * d + j] * c(j)).sum::<f64>()).sum()
-            };
-            let (re, im) = (|i: usize| w(i).0, |i: usize| w(i).1);
-            let (s11, s12, s22) = (quad(&re, &re), quad(&re, &im), quad(&im, &im));
+            let (s11, s12, s22) = (
+                s(|q| (&q.re, &q.c_re), |q| (&q.re, &q.c_re)),
+                s(|q| (&q.re, &q.c_im), |q| (&q.re, &q.c_im)),
+                s(|q| (&q.im, &q.c_im), |q| (&q.im, &q.c_im)),
+            );
             let delta = (p.0 - r.0, p.1 - r.1);
             let both_real = r.1.abs() <= REAL * r.0.hypot(r.1) && p.1.abs() <= REAL * p.0.hypot(p.1);
             if both_real {
@@ -74,6 +81,15 @@ pub fn cancelling_pairs(b: &[f64], f: &[f64], cov: &[f64], d: usize) -> Option<u
         count += u32::from(cancels);
     }
     Some(count)
+}
+
+/// A root's gradient (real and imaginary parts over the parameters) and the covariance times
+/// each.
+struct Parts {
+    re: Vec<f64>,
+    im: Vec<f64>,
+    c_re: Vec<f64>,
+    c_im: Vec<f64>,
 }
 
 /// `dr/db_i` of a root r of `b_1 z^(n-1) + ... + b_n` (n = `b.len()`).

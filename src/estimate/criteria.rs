@@ -11,21 +11,21 @@
 //!
 //! np counts every estimated parameter: nB + nF, and the offset when it is estimated.
 //!
-//! **Robust criteria of a Huber fit** (METHOD.md 14.1). The noise model behind Huber's
-//! criterion is his least favourable density with scale s, `f(e) = exp(-rho_k(e/s)) / (s C_k)`,
-//! `C_k = sqrt(2 pi) (2 Phi(k) - 1) + 2 exp(-k^2/2) / k`. With the fit's residuals and the scale
-//! profiled out (`s_hat` solves `mean(psi_k(x) x) = 1`, x = e/s, the likelihood equation of s):
+//! **Robust criteria of a Huber fit** (METHOD.md 14.1). The fit minimised W = (1/N) sum
+//! rho_gamma(e_t) with gamma = k sigma; that makes it the maximum-likelihood fit under the density
+//! `f(e) = exp(-rho_gamma(e) / tau^2) / Z(gamma, tau)` for every tau, Huber's least favourable
+//! density with scale tau and tuning constant `kappa = gamma / tau`:
+//! `Z = tau C(kappa)`, `C(kappa) = sqrt(2 pi) (2 Phi(kappa) - 1) + 2 exp(-kappa^2/2) / kappa`. With
+//! tau profiled out (its likelihood equation `2 W / tau^2 = 1 + 2 exp(-kappa^2/2) / (kappa C(kappa))`
+//! has one root):
 //!
 //! ```text
-//! -2 log L = 2 sum rho_k(e_t/s_hat) + 2 N log s_hat + 2 N log C_k
-//! RAIC     = -2 log L + 2 np E[psi_k^2] / E[psi_k']     Ronchetti (1985), tr(M^-1 Q) for Huber
-//! RBIC     = -2 log L + np log N                        Machado (1993)
+//! -2 log L = 2 N (W / tau^2 + log tau + log C(gamma/tau))
+//! RAIC     = -2 log L + 2 np mean(psi_gamma(e)^2) / (tau^2 (1 - L1C))   Ronchetti (1985)
+//! RBIC     = -2 log L + np log N                                        Machado (1993)
 //! ```
 //!
-//! For k -> infinity both become the Gaussian AIC and BIC above. E[psi'] = P(|x| <= k) is
-//! estimated with a smoothed count (an integrated Epanechnikov kernel, Silverman's bandwidth):
-//! at the paper's small k only a handful of residuals lie inside +/-k, and a raw count would
-//! make the penalty jump between neighbouring cells.
+//! For gamma -> infinity both become the Gaussian AIC and BIC above.
 
 use statrs::function::erf::erf;
 
@@ -60,109 +60,62 @@ pub struct Robust {
     pub rbic: f64,
 }
 
-/// Largest Newton steps on log s before the profiled scale is taken as found.
-const SCALE_STEPS: usize = 60;
+/// Bisection steps on log kappa: the bracket [1e-8, 1e8] shrinks below 1e-12 relative.
+const SCALE_STEPS: usize = 100;
 
-/// The robust criteria of a Huber fit at tuning constant `k` with residuals `y - yhat` and
-/// `np` estimated parameters.
-pub fn robust(y: &[f64], yhat: &[f64], k: f64, np: usize) -> Robust {
+/// The robust criteria of a Huber fit with threshold `gamma`, residuals `y - yhat` and `np`
+/// estimated parameters.
+pub fn robust(y: &[f64], yhat: &[f64], gamma: f64, np: usize) -> Robust {
     let undefined = Robust { raic: f64::NAN, rbic: f64::NAN };
     let n = y.len().min(yhat.len());
-    let e = || y.iter().zip(yhat).map(|(a, b)| a - b);
-    let mean_abs = e().map(f64::abs).sum::<f64>() / n as f64;
-    if n == 0 || !(mean_abs.is_finite() && mean_abs > 0.0) || !(k.is_finite() && k > 0.0) {
+    if n == 0 || !(gamma.is_finite() && gamma > 0.0) {
         return undefined;
     }
-    let Some(s) = profiled_scale(&e, n, k, mean_abs) else { return undefined };
-    let nf = n as f64;
-    let (mut sum_rho, mut sum_psi2) = (0.0, 0.0);
-    for x in e().map(|v| v / s) {
-        sum_rho += super::huber::rho(k, x);
-        let p = x.clamp(-k, k);
-        sum_psi2 += p * p;
+    let (mut w, mut psi2, mut inside) = (0.0, 0.0, 0usize);
+    for e in y.iter().zip(yhat).map(|(a, b)| a - b) {
+        w += super::huber::rho(gamma, e);
+        let p = e.clamp(-gamma, gamma);
+        psi2 += p * p;
+        inside += usize::from(e.abs() <= gamma);
     }
-    let c_k = (2.0 * std::f64::consts::PI).sqrt() * erf(k / std::f64::consts::SQRT_2) + 2.0 * (-0.5 * k * k).exp() / k;
-    let minus_2_log_l = 2.0 * sum_rho + 2.0 * nf * s.ln() + 2.0 * nf * c_k.ln();
-    let slope = smoothed_share_inside(&e, n, k, s);
+    let nf = n as f64;
+    let (w, psi2, share) = (w / nf, psi2 / nf, (inside as f64).max(1.0) / nf);
+    let Some(kappa) = profiled_kappa(w, gamma) else { return undefined };
+    let tau = gamma / kappa;
+    let minus_2_log_l = 2.0 * nf * (w / (tau * tau) + tau.ln() + c(kappa).ln());
     let p = np as f64;
-    Robust { raic: minus_2_log_l + 2.0 * p * (sum_psi2 / nf) / slope, rbic: minus_2_log_l + p * nf.ln() }
+    Robust { raic: minus_2_log_l + 2.0 * p * psi2 / (tau * tau * share), rbic: minus_2_log_l + p * nf.ln() }
 }
 
-/// The scale s with `mean(psi_k(e/s) e/s) = 1`: `mean(min(x^2, k|x|))` falls strictly with s,
-/// so the root is unique; Newton on log s from the least-absolute scale, kept inside a bracket.
-fn profiled_scale<I: Iterator<Item = f64>>(e: &impl Fn() -> I, n: usize, k: f64, mean_abs: f64) -> Option<f64> {
-    let nf = n as f64;
-    // h(t) = mean(min(x^2, k|x|)) - 1 at s = exp(t), and its derivative in t.
-    let h = |t: f64| {
-        let s = t.exp();
-        let (mut v, mut dv) = (0.0, 0.0);
-        for a in e().map(|x| (x / s).abs()) {
-            if a <= k {
-                v += a * a;
-                dv -= 2.0 * a * a;
-            } else {
-                v += k * a;
-                dv -= k * a;
-            }
-        }
-        (v / nf - 1.0, dv / nf)
-    };
-    // g(s) = mean(min(x^2, k|x|)) is at most mean(e^2)/s^2 and k mean|e|/s, so the root lies
-    // below the smaller of sqrt(mean e^2) and k mean|e|; halving s from there finds a lower
-    // end with g >= 1 (g grows like 1/s as s -> 0 because mean|e| > 0).
-    let mean_sq = e().map(|v| v * v).sum::<f64>() / nf;
-    let mut hi = mean_sq.sqrt().min(k * mean_abs).ln();
-    let mut lo = hi;
-    for _ in 0..SCALE_STEPS {
-        if h(lo).0 >= 0.0 {
-            break;
-        }
-        hi = lo;
-        lo -= std::f64::consts::LN_2;
+/// The normalising constant of Huber's density with tuning constant `kappa` and unit scale.
+fn c(kappa: f64) -> f64 {
+    (2.0 * std::f64::consts::PI).sqrt() * erf(kappa / std::f64::consts::SQRT_2)
+        + 2.0 * (-0.5 * kappa * kappa).exp() / kappa
+}
+
+/// kappa = gamma / tau of the profiled scale: the root of
+/// `2 W kappa^2 / gamma^2 - 1 - 2 exp(-kappa^2/2) / (kappa C(kappa))`, which rises from -2 at
+/// kappa -> 0 to +infinity (the second term falls from 2 to 1), by bisection on log kappa.
+fn profiled_kappa(w: f64, gamma: f64) -> Option<f64> {
+    if !(w.is_finite() && w > 0.0) {
+        return None;
     }
-    let mut t = 0.5 * (lo + hi);
+    let h = |kappa: f64| {
+        2.0 * w * kappa * kappa / (gamma * gamma) - 1.0 - 2.0 * (-0.5 * kappa * kappa).exp() / (kappa * c(kappa))
+    };
+    let (mut lo, mut hi) = (1e-8f64.ln(), 1e8f64.ln());
+    if !(h(lo.exp()) < 0.0 && h(hi.exp()) > 0.0) {
+        return None;
+    }
     for _ in 0..SCALE_STEPS {
-        let (v, dv) = h(t);
-        if v > 0.0 {
-            lo = t;
+        let mid = 0.5 * (lo + hi);
+        if h(mid.exp()) < 0.0 {
+            lo = mid;
         } else {
-            hi = t;
+            hi = mid;
         }
-        let newton = t - v / dv;
-        let next = if newton.is_finite() && newton > lo && newton < hi { newton } else { 0.5 * (lo + hi) };
-        if (next - t).abs() < 1e-12 {
-            return Some(next.exp()).filter(|s| s.is_finite() && *s > 0.0);
-        }
-        t = next;
     }
-    Some(t.exp()).filter(|s| s.is_finite() && *s > 0.0)
-}
-
-/// `P(|x| <= k)` of x = e/s, from the integrated Epanechnikov kernel with Silverman's
-/// bandwidth `0.9 A N^-1/5`, A the smaller of the standard deviation and the Gaussian-scaled
-/// mean absolute value of x (so spikes do not widen it); floored at 1/N.
-fn smoothed_share_inside<I: Iterator<Item = f64>>(e: &impl Fn() -> I, n: usize, k: f64, s: f64) -> f64 {
-    let nf = n as f64;
-    let (mut sum, mut sum_sq, mut sum_abs) = (0.0, 0.0, 0.0);
-    for x in e().map(|v| v / s) {
-        sum += x;
-        sum_sq += x * x;
-        sum_abs += x.abs();
-    }
-    let sd = (sum_sq / nf - (sum / nf).powi(2)).max(0.0).sqrt();
-    let spread = sd.min(sum_abs / nf * (std::f64::consts::PI / 2.0).sqrt());
-    let h = 0.9 * spread * nf.powf(-0.2);
-    // The kernel's CDF: 0 below -1, 1 above 1.
-    let cdf = |u: f64| {
-        let u = u.clamp(-1.0, 1.0);
-        0.5 + 0.75 * u - 0.25 * u * u * u
-    };
-    let share = if h > 0.0 {
-        e().map(|v| v / s).map(|x| cdf((k - x) / h) - cdf((-k - x) / h)).sum::<f64>() / nf
-    } else {
-        e().filter(|v| (v / s).abs() <= k).count() as f64 / nf
-    };
-    share.max(1.0 / nf)
+    Some((0.5 * (lo + hi)).exp())
 }
 
 #[cfg(test)]
@@ -193,44 +146,51 @@ mod tests {
     }
 
     #[test]
-    fn robust_criteria_become_the_gaussian_ones_for_large_k() {
+    fn robust_criteria_become_the_gaussian_ones_for_large_gamma() {
         let e = gaussian_quantiles(4000, 0.3);
         let zero = vec![0.0; e.len()];
         let v = e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64;
         let ls = least_squares(v, e.len(), 5);
         let r = robust(&e, &zero, 50.0, 5);
-        assert!((r.raic - ls.aic).abs() < 0.05, "{} vs {}", r.raic, ls.aic);
-        assert!((r.rbic - ls.bic).abs() < 0.05, "{} vs {}", r.rbic, ls.bic);
+        assert!((r.raic - ls.aic).abs() < 1e-6, "{} vs {}", r.raic, ls.aic);
+        assert!((r.rbic - ls.bic).abs() < 1e-6, "{} vs {}", r.rbic, ls.bic);
     }
 
     #[test]
-    fn profiled_scale_solves_its_equation_and_the_penalty_is_the_efficiency_loss() {
-        let e = gaussian_quantiles(20000, 2.0);
-        for k in [0.05, 0.3, 1.345, 2.0] {
-            let mean_abs = e.iter().map(|v| v.abs()).sum::<f64>() / e.len() as f64;
-            let s = profiled_scale(&|| e.iter().copied(), e.len(), k, mean_abs).unwrap();
-            let m = e.iter().map(|v| (v / s).abs()).map(|a| if a <= k { a * a } else { k * a }).sum::<f64>()
-                / e.len() as f64;
-            assert!((m - 1.0).abs() < 1e-9, "k {k}: {m}");
-            // On Gaussian residuals E psi^2 / E psi' is the asymptotic variance of the
-            // M-estimator relative to least squares: pi/2 for k -> 0, 1.05 at k = 1.345.
-            let r = robust(&e, &vec![0.0; e.len()], k, 1);
-            let r0 = robust(&e, &vec![0.0; e.len()], k, 0);
-            let factor = (r.raic - r0.raic) / 2.0;
-            let expected = if k == 0.05 { std::f64::consts::FRAC_PI_2 } else { f64::NAN };
-            if k == 0.05 {
-                assert!((factor - expected).abs() < 0.1, "k {k}: {factor}");
-            }
-            if k == 1.345 {
-                assert!((factor - 1.05).abs() < 0.03, "k {k}: {factor}");
-            }
+    fn the_profiled_scale_maximises_the_likelihood() {
+        // -2 log L / 2N as a function of tau, minimised at the profiled tau.
+        let (w, gamma) = (0.37, 0.4);
+        let kappa = profiled_kappa(w, gamma).unwrap();
+        let nll = |tau: f64| w / (tau * tau) + tau.ln() + c(gamma / tau).ln();
+        let tau = gamma / kappa;
+        for f in [0.9, 0.99, 1.01, 1.1] {
+            assert!(nll(tau * f) > nll(tau), "tau x {f}");
         }
+        // C is the integral of exp(-rho_kappa(x)).
+        let kappa = 0.7;
+        let dx = 1e-3;
+        let integral: f64 =
+            (-60_000..60_000).map(|i| (-crate::estimate::huber::rho(kappa, (i as f64 + 0.5) * dx)).exp() * dx).sum();
+        assert!((integral - c(kappa)).abs() < 1e-6, "{integral} vs {}", c(kappa));
+    }
+
+    #[test]
+    fn the_penalty_is_one_per_parameter_when_the_density_fits() {
+        // tr(M^-1 Q) per parameter, E psi^2 / (tau^2 E psi'), is 1 when the residuals follow the
+        // density (the information identity) and grows with the misfit: on Gaussian residuals
+        // with gamma = 1.345 sd, E psi^2 = 0.710 sd^2, E psi' = 0.821 and tau^2 = 0.80 sd^2
+        // give 1.08.
+        let e = gaussian_quantiles(20000, 2.0);
+        let zero = vec![0.0; e.len()];
+        let factor = |gamma: f64| (robust(&e, &zero, gamma, 1).raic - robust(&e, &zero, gamma, 0).raic) / 2.0;
+        assert!((factor(1.345 * 2.0) - 1.08).abs() < 0.01, "{}", factor(2.69));
+        assert!((factor(100.0) - 1.0).abs() < 1e-9);
     }
 
     #[test]
     fn robust_criteria_ignore_spikes_that_mislead_the_gaussian_ones() {
-        // A better model removes a small structured error; spikes on 15 % of samples swamp V
-        // but not the robust likelihood.
+        // A better model removes a small structured error; spikes on 1 in 7 samples swamp V but
+        // not the robust likelihood.
         let base = gaussian_quantiles(2000, 0.1);
         let spiky = |x: &[f64]| -> Vec<f64> {
             x.iter()
@@ -241,8 +201,8 @@ mod tests {
         let worse: Vec<f64> = base.iter().enumerate().map(|(t, v)| v + 0.06 * (t as f64 * 0.9).sin()).collect();
         let (good, bad) = (spiky(&base), spiky(&worse));
         let zero = vec![0.0; 2000];
-        let good_r = robust(&good, &zero, 0.5, 6);
-        let bad_r = robust(&bad, &zero, 0.5, 5);
+        let good_r = robust(&good, &zero, 0.15, 6);
+        let bad_r = robust(&bad, &zero, 0.15, 5);
         assert!(good_r.rbic < bad_r.rbic && good_r.raic < bad_r.raic, "{good_r:?} vs {bad_r:?}");
         // The Gaussian BIC prefers the worse, smaller model: the spikes swamp V.
         let v = |x: &[f64]| x.iter().map(|e| e * e).sum::<f64>() / x.len() as f64;

@@ -225,7 +225,7 @@ pub(crate) fn huber_from_solution(
         b: b.to_vec(),
         f: f.to_vec(),
         offset: prob.offset.then(|| prob.split(&sol.theta).2),
-        criteria: super::criteria::robust(prob.y, ws.yhat(), k, prob.dim()),
+        criteria: super::criteria::robust(prob.y, ws.yhat(), gamma, prob.dim()),
     }
 }
 

@@ -42,6 +42,18 @@ impl Layout {
         if c < self.nb { (Seq::U, 1.0, self.delay + c) } else { (Seq::Y, -1.0, c - self.nb + 1) }
     }
 
+    /// Write column `c` of the Jacobian (c < [`Layout::dim`]) at times `start..start + out.len()`,
+    /// times `factor`, into `out`.
+    pub fn column_into(&self, xu: &[f64], xy: &[f64], c: usize, start: usize, factor: f64, out: &mut [f64]) {
+        let (seq, sign, lag) = self.col(c);
+        let x = if seq == Seq::U { xu } else { xy };
+        let f = sign * factor;
+        for (k, o) in out.iter_mut().enumerate() {
+            let t = start + k;
+            *o = if t >= lag { f * x[t - lag] } else { 0.0 };
+        }
+    }
+
     /// Write `psi_t` (the Jacobian row of the predictor at time t) into `row`.
     #[inline(always)]
     pub fn row(&self, xu: &[f64], xy: &[f64], t: usize, row: &mut [f64]) {

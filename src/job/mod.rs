@@ -163,11 +163,13 @@ pub struct SelectionSettings {
     /// Candidates within this many fit-percentage points of the best count as ties; the one
     /// with the fewest parameters wins.
     pub fit_tolerance: f64,
+    /// The pick rule the summary leads with (every rule is reported; METHOD.md 7.1).
+    pub rule: crate::reduce::Rule,
 }
 
 impl Default for SelectionSettings {
     fn default() -> Self {
-        SelectionSettings { min_tolerance: 1e-3, fit_tolerance: 0.05 }
+        SelectionSettings { min_tolerance: 1e-3, fit_tolerance: 0.05, rule: crate::reduce::rules::DEFAULT_RULE }
     }
 }
 
