@@ -224,7 +224,8 @@ fn plan_parquet(bytes: &[u8]) {
         return;
     }
     match o.status.code() {
-        Some(0) => assert!(stderr.is_empty(), "{stderr}"),
+        // A file that reads may still earn a warning about its data (METHOD.md 7.2).
+        Some(0) => assert!(stderr.lines().all(|l| l.starts_with("warning: ")), "{stderr}"),
         Some(2) => {
             assert_eq!(stderr.lines().count(), 1, "not one line: {stderr}");
             assert!(stderr.contains(&format!("{}: ", p.display())), "file not named: {stderr}");

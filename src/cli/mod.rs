@@ -168,10 +168,13 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         shard: a.shard,
         report: a.report,
     };
+    // The data's warnings are printed when the records are read; the picks' at the end.
+    let printed = std::cell::RefCell::new(Vec::new());
     let on_resume = |r: &engine::Resumed| {
         for w in &r.warnings {
             eprintln!("warning: {w}");
         }
+        printed.borrow_mut().extend(r.warnings.iter().cloned());
         if r.cells + r.ls > 0 && !a.quiet {
             eprintln!(
                 "resuming from {} ({} parts): {} of {} cells and {} of {} least-squares fits already done",
@@ -237,6 +240,9 @@ fn run_job(a: &RunArgs) -> Result<u8> {
             println!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
             print_picks(selection);
             print_rules(selection);
+            for w in selection.warnings.iter().filter(|w| !printed.borrow().contains(w)) {
+                eprintln!("warning: {w}");
+            }
             println!("results in {}", o.out.display());
             if let Some(e) = &o.cleanup {
                 eprintln!("warning: {e}");
@@ -304,6 +310,9 @@ fn run_merge(a: &MergeArgs) -> Result<u8> {
             );
             print_picks(selection);
             print_rules(selection);
+            for w in &selection.warnings {
+                eprintln!("warning: {w}");
+            }
             println!("results in {}", out.display());
             if m.missing.is_empty() {
                 if let Some(e) = &m.cleanup {

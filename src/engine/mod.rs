@@ -321,6 +321,9 @@ fn write_results(out: &Path, job: &ValidJob, rows: &[CellRow], inputs: Option<&I
     selection.input_level = inputs.map(|i| i.levels.u0);
     selection.initial_state = Some(job.job.initial_state);
     selection.warnings = inputs.map(|i| i.warnings.clone()).unwrap_or_default();
+    let bounds = |v: &[usize]| (v[0] as u32, v[v.len() - 1] as u32);
+    let grid = reduce::doubts::GridBounds { nb: bounds(&job.nb), nf: bounds(&job.nf), delay: bounds(&job.delays) };
+    selection.warnings.extend(reduce::doubts::pick_warnings(&selection, &grid));
     if let Some(inputs) = inputs {
         for pick in [selection.m1.as_mut(), selection.m2.as_mut()].into_iter().flatten() {
             pick.covariance = covariance_of(&pick.model, inputs);

@@ -160,7 +160,7 @@ const ROBUST_START_K: [f64; 2] = [0.5, 0.1];
 /// Huber fit cannot move the near-unit pole (1/F has an almost infinite memory), so the fit
 /// gets a contracted extra start (METHOD.md 5.2, step 4). 0.999 is well above the poles of the
 /// lightly damped piezo models (0.98-0.99) and below where the memory makes the fit creep.
-const BOUNDARY: f64 = 0.999;
+pub const BOUNDARY: f64 = 0.999;
 /// Radius the poles of a boundary fit are scaled to for that extra start: inside enough that
 /// the Huber fit moves freely, close enough to stay in the basin of theta_LS. Dropping the
 /// start saved only 6-10 % of the Huber phase (issue 19); no other radius was measured.

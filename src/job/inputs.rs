@@ -36,12 +36,31 @@ pub fn read_inputs(
         data::check_for_model(rec, nb_max, nf_max, delay_max)?;
     }
     let levels = Levels::of(offset, &est);
-    let warnings = data::levels::offset_warning(offset, &est).into_iter().collect();
+    let mut warnings: Vec<String> = data::levels::offset_warning(offset, &est).into_iter().collect();
+    warnings.extend(integrating_warning(&est));
     levels.apply(&mut est);
     if let Some(v) = val.as_mut() {
         levels.apply(v);
     }
     Ok(Inputs { est, val, levels, warnings })
+}
+
+/// Slope of log |G| against log f towards 0 Hz below which the plant looks integrating: an
+/// integrator gives -1, a plant with a static gain 0 (METHOD.md 7.2).
+const INTEGRATING_SLOPE: f64 = -0.7;
+
+/// A warning when the estimation record's spectral estimate rises like 1/f towards 0 Hz.
+fn integrating_warning(est: &Record) -> Option<String> {
+    let spectrum = crate::spectral::estimate(&est.u, &est.y, 1.0, crate::spectral::SpectrumMethod::Welch).ok()?;
+    let slope = crate::spectral::low_frequency_slope(&spectrum)?;
+    (slope < INTEGRATING_SLOPE).then(|| {
+        format!(
+            "the spectral estimate of {} rises like f^{slope:.2} towards 0 Hz: the plant looks integrating (or \
+             unstable), and an output-error model forces a stable model onto it (identify from the differenced \
+             output, or in closed loop)",
+            est.path.display()
+        )
+    })
 }
 
 /// The records of a checked job, as read from the files (levels not taken out): for the

@@ -42,6 +42,7 @@
 //! Defaults: `min_tolerance = 1e-3`, `fit_tolerance = 0.05` points.
 
 mod candidate;
+pub mod doubts;
 pub mod rules;
 
 use crate::table::CellRow;

@@ -1,0 +1,80 @@
+//! The warnings that say when the answer is doubtful (METHOD.md 7.2), on cases made for them:
+//! a true order outside the grid (the pick on the grid's edge) and an integrating plant (the
+//! spectral estimate rising like 1/f and picks on the stability boundary); and none on a plant
+//! the grid contains.
+
+mod common;
+
+use common::*;
+use std::path::Path;
+use std::process::Command;
+
+/// Write `u`, `y` as CSV and a job over nB, nF in 1..=`max` into `dir`; run `oesweep run`;
+/// return its stderr and selection.json's warnings.
+fn run(dir: &Path, u: &[f64], y: &[f64], max: usize) -> (String, Vec<String>) {
+    let mut csv = String::from("u,y\n");
+    for (a, b) in u.iter().zip(y) {
+        csv.push_str(&format!("{a},{b}\n"));
+    }
+    std::fs::write(dir.join("data.csv"), csv).unwrap();
+    let job = serde_json::json!({
+        "name": "doubts",
+        "data": { "path": "data.csv", "u": "u", "y": "y", "ts": 1.0 },
+        "grid": { "nb": [1, max], "nf": [1, max], "k": [0.5, 1.5] },
+        "output": "out"
+    });
+    std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .args(["run", dir.join("job.json").to_str().unwrap(), "--quiet"])
+        .output()
+        .expect("oesweep runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let sel: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out/selection.json")).unwrap()).unwrap();
+    let warnings = sel["warnings"].as_array().unwrap().iter().map(|w| w.as_str().unwrap().to_string()).collect();
+    (String::from_utf8_lossy(&o.stderr).into_owned(), warnings)
+}
+
+/// A 3rd-order OE system with noise of 2 % of the output's scale.
+fn third_order(n: usize) -> (Vec<f64>, Vec<f64>) {
+    let b = [1.0, 0.5, 0.3];
+    let f = f_from_poles(&[(0.78, 0.69)], &[0.85]);
+    let u = binary_input(n, 3, 1.0, 7);
+    let mut rng = Lcg(11);
+    let y = oesweep::oe::simulate_vec(&b, &f, 1, &u).iter().map(|v| v + 0.2 * rng.normal()).collect();
+    (u, y)
+}
+
+#[test]
+fn a_true_order_outside_the_grid_puts_the_pick_on_the_edge_and_says_so() {
+    let (u, y) = third_order(2000);
+    let dir = tempfile::tempdir().unwrap();
+    let (stderr, warnings) = run(dir.path(), &u, &y, 2);
+    let edge: Vec<&String> = warnings.iter().filter(|w| w.contains("widen the grid")).collect();
+    assert!(!edge.is_empty(), "{warnings:?}");
+    // The lead rule's pick is among them.
+    assert!(edge.iter().any(|w| w.contains("paper_m2") && w.contains("the largest")), "{edge:?}");
+    assert!(stderr.contains("widen the grid"), "{stderr}");
+    // The grid that contains the plant: no edge, no integrator.
+    let dir = tempfile::tempdir().unwrap();
+    let (_, warnings) = run(dir.path(), &u, &y, 4);
+    assert!(warnings.is_empty(), "{warnings:?}");
+}
+
+#[test]
+fn an_integrating_plant_is_named_by_its_spectrum_and_its_poles() {
+    // y_t = y_{t-1} + 0.05 u_{t-1} + noise: |G| ~ 1/f towards 0 Hz.
+    let n = 3000;
+    let u = binary_input(n, 5, 1.0, 3);
+    let mut rng = Lcg(5);
+    let mut y = vec![0.0; n];
+    for t in 1..n {
+        y[t] = y[t - 1] + 0.05 * u[t - 1];
+    }
+    let y: Vec<f64> = y.iter().map(|v| v + 0.01 * rng.normal()).collect();
+    let dir = tempfile::tempdir().unwrap();
+    let (stderr, warnings) = run(dir.path(), &u, &y, 2);
+    assert!(warnings.iter().any(|w| w.contains("rises like f^") && w.contains("integrating")), "{warnings:?}");
+    assert!(warnings.iter().any(|w| w.contains("stability boundary")), "{warnings:?}");
+    assert!(stderr.contains("integrating"), "{stderr}");
+}
