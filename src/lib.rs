@@ -19,6 +19,7 @@ pub mod plan;
 pub mod progress;
 pub mod reduce;
 pub mod report;
+pub mod results;
 pub mod shard;
 pub mod simulate;
 pub mod slurm;

@@ -228,6 +228,7 @@ fn kill_and_resume(start: &str) {
     assert!(got == expected, "start = {start}: the resumed table differs from the uninterrupted one");
     let sel = |d: &str| std::fs::read_to_string(dir.path().join(d).join("selection.json")).unwrap();
     assert_eq!(sel("out"), sel("ref"));
+    assert!(sel("out").contains("\"rbic\": {"), "every rule's pick is compared");
 }
 
 #[test]

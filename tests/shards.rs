@@ -108,7 +108,9 @@ fn shards_side_by_side(start: &str, delays: [usize; 2]) {
     let o = oesweep(&["merge", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     assert!(table(&out.join("cells.parquet")) == expected, "start = {start}: merged table differs from one process");
+    // The same picks of every rule, criteria included (the table holds the criteria columns).
     assert_eq!(file(&out, "selection.json"), file(&dir.path().join("ref"), "selection.json"));
+    assert!(file(&out, "selection.json").contains("\"rbic\": {"), "every rule's pick is compared");
     let ref_job = file(&dir.path().join("ref"), "job.json").replace("/ref\"", "/out\"");
     assert_eq!(file(&out, "job.json"), ref_job);
     assert!(!out.join("parts").exists(), "a complete merge deletes the checkpoint");

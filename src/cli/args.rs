@@ -31,6 +31,32 @@ pub enum Command {
     Slurm(SlurmArgs),
     /// Nonparametric frequency response of a record (robust to output spikes by default).
     Spectrum(SpectrumArgs),
+    /// Write one model of a finished run for python-control, scipy or MATLAB.
+    Export(ExportArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// Output folder of a finished `oesweep run` (or merge).
+    pub folder: PathBuf,
+    /// The model: m1, m2, a rule of selection.json's picks (rbic, evidence, ...), or NB,NF,K[,D]
+    /// (K a k of the grid, or `ls` for the least-squares fit); default: the lead rule's pick.
+    #[arg(long, value_name = "PICK")]
+    pub pick: Option<crate::engine::PickSpec>,
+    /// json: num, den, dt (python-control, scipy) with offset, delay, covariance; matlab: a script
+    /// that builds the tf (and the idpoly); mat: a MAT-file (needs --out).
+    #[arg(long, value_enum)]
+    pub to: ExportFormat,
+    /// File to write (default: standard output; required for mat).
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ExportFormat {
+    Json,
+    Matlab,
+    Mat,
 }
 
 #[derive(Args, Debug)]

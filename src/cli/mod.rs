@@ -49,7 +49,40 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Merge(a) => run_merge(&a),
         Command::Slurm(a) => run_slurm(&a),
         Command::Spectrum(a) => run_spectrum(&a),
+        Command::Export(a) => run_export(&a),
     }
+}
+
+/// `oesweep export` ([`engine::export_model`]).
+fn run_export(a: &args::ExportArgs) -> Result<u8> {
+    use args::ExportFormat;
+    if a.to == ExportFormat::Mat && a.out.is_none() {
+        return Err(Error::Invalid("--to mat writes a binary file: name it with --out FILE".into()));
+    }
+    let (model, notes) = engine::export_model(&a.folder, a.pick.as_ref())?;
+    for n in &notes {
+        eprintln!("warning: {n}");
+    }
+    let text = match a.to {
+        ExportFormat::Json => model.to_json_text(),
+        ExportFormat::Matlab => model.to_matlab(),
+        ExportFormat::Mat => {
+            let out = a.out.as_ref().expect("checked above");
+            model.write_mat(out)?;
+            eprintln!("wrote {} ({})", out.display(), model.name);
+            return Ok(0);
+        }
+    };
+    match &a.out {
+        Some(out) => {
+            crate::export::write_atomically(out, |f| {
+                std::io::Write::write_all(f, text.as_bytes()).map_err(|e| e.to_string())
+            })?;
+            eprintln!("wrote {} ({})", out.display(), model.name);
+        }
+        None => print!("{text}"),
+    }
+    Ok(0)
 }
 
 /// `oesweep spectrum` ([`engine::spectrum`]).

@@ -29,7 +29,10 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+mod export_model;
 mod single;
+
+pub use export_model::{PickSpec, export_model};
 pub use single::{FitReport, FitRequest, SpectrumReport, SpectrumRequest, fit, simulate, spectrum};
 
 /// A job, its data and everything derived from them before estimation starts.
@@ -337,10 +340,10 @@ fn write_results(out: &Path, job: &ValidJob, rows: &[CellRow], inputs: Option<&I
     Ok(selection)
 }
 
-/// The robust covariance of a pick's parameters `[b, f(, c)]` on the estimation record (None
-/// when its Gram matrix is singular): the model as the run fitted it, levels taken out and the
-/// offset a parameter when the job estimated it (METHOD.md 10).
-fn covariance_of(c: &reduce::Candidate, inputs: &Inputs) -> Option<Vec<f64>> {
+/// The covariance of a row's parameters `[b, f(, c)]` on the estimation record (None when its
+/// Gram matrix is singular): the model as the run fitted it, levels taken out and the offset a
+/// parameter when the job estimated it; robust for a Huber row (METHOD.md 10).
+fn covariance_of(c: &CellRow, inputs: &Inputs) -> Option<Vec<f64>> {
     let prob = Problem {
         u: &inputs.est.u,
         y: &inputs.est.y,
@@ -351,7 +354,8 @@ fn covariance_of(c: &reduce::Candidate, inputs: &Inputs) -> Option<Vec<f64>> {
     };
     let theta = estimate::theta_of(&c.fit.b, &c.fit.f, inputs.levels.estimated_c(c.fit.offset));
     let yhat = prob.simulate_vec(&theta);
-    estimate::evidence::covariance(&prob, &theta, estimate::Loss::Huber { gamma: c.gamma() }, &yhat)
+    let loss = c.fit.gamma.map_or(estimate::Loss::LeastSquares, |gamma| estimate::Loss::Huber { gamma });
+    estimate::evidence::covariance(&prob, &theta, loss, &yhat)
 }
 
 /// How [`merge`] ended.

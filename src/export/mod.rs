@@ -7,6 +7,7 @@
 //! only atomic within one file system.
 
 pub mod json;
+pub mod model;
 pub mod parquet;
 
 /// The result table of a finished run (or merge).

@@ -59,7 +59,6 @@ use crate::data::Record;
 use crate::error::{Error, Result};
 use crate::estimate::InitialState;
 use crate::estimate::initial_state::model_output;
-use crate::export::parquet::read_cells;
 use crate::export::write_atomically;
 use crate::job::DataSpec;
 use crate::job::ValidJob;
@@ -72,7 +71,6 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 /// Files a finished sweep leaves in its folder.
-const REQUIRED: [&str; 3] = crate::export::RESULT_FILES;
 /// Prefix of the figure files, so a new report can remove the figures of an old one.
 const FIGURE_PREFIX: &str = "report-";
 /// Samples shown in the simulated-output figures: a readable window of the record.
@@ -102,24 +100,8 @@ impl Review {
     }
 
     fn load(folder: &Path) -> Result<Review> {
-        if !folder.is_dir() {
-            return Err(Error::input(folder, "no such results folder (`oesweep run JOB` writes one)"));
-        }
-        let missing: Vec<&str> = REQUIRED.iter().copied().filter(|f| !folder.join(f).is_file()).collect();
-        if let Some(first) = missing.first() {
-            return Err(Error::input(
-                folder.join(first),
-                format!(
-                    "missing: a finished sweep folder holds {}; absent here: {} (`oesweep run JOB` writes them)",
-                    REQUIRED.join(", "),
-                    missing.join(", ")
-                ),
-            ));
-        }
-        let rows = read_cells(&folder.join(crate::export::CELLS_FILE))?;
-        let selection: Selection = read_json(&folder.join(crate::export::SELECTION_FILE))?;
+        let crate::results::Results { folder, rows, selection, job, version } = crate::results::read_results(folder)?;
         let job_path = folder.join(crate::export::JOB_FILE);
-        let (job, version) = crate::job::read_as_run(&job_path)?;
         let gone = |spec: &DataSpec, what: &str| -> Result<()> {
             if spec.path.is_file() {
                 Ok(())
@@ -140,7 +122,7 @@ impl Review {
         }
         let (est, val) = crate::job::read_records(&job.job.data, job.job.validation.as_ref())?;
         let u0 = selection.input_level.unwrap_or(0.0);
-        Ok(Review { folder: folder.to_path_buf(), rows, selection, job, version, est, val, u0 })
+        Ok(Review { folder, rows, selection, job, version, est, val, u0 })
     }
 
     fn ts(&self) -> f64 {
@@ -172,11 +154,6 @@ impl Review {
                 && r.ok()
         })
     }
-}
-
-fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
-    serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not the file `oesweep run` writes: {e}")))
 }
 
 /// Write `report.html` and its figures into `folder`; returns the page's path.

@@ -1,0 +1,46 @@
+//! A finished run's result files read back (`cells.parquet`, `selection.json`, `job.json`): the
+//! one reader of a results folder, for the report and `oesweep export`.
+
+use crate::error::{Error, Result};
+use crate::export::{CELLS_FILE, JOB_FILE, RESULT_FILES, SELECTION_FILE};
+use crate::job::ValidJob;
+use crate::reduce::Selection;
+use crate::table::CellRow;
+use std::path::{Path, PathBuf};
+
+/// What a finished run (or merge) wrote.
+pub struct Results {
+    pub folder: PathBuf,
+    pub rows: Vec<CellRow>,
+    pub selection: Selection,
+    /// The job as run (`job.json`) and the program version that ran it.
+    pub job: ValidJob,
+    pub version: Option<String>,
+}
+
+/// Read a results folder; a missing folder or file is an [`Error::Input`] naming it.
+pub fn read_results(folder: &Path) -> Result<Results> {
+    if !folder.is_dir() {
+        return Err(Error::input(folder, "no such results folder (`oesweep run JOB` writes one)"));
+    }
+    let missing: Vec<&str> = RESULT_FILES.iter().copied().filter(|f| !folder.join(f).is_file()).collect();
+    if let Some(first) = missing.first() {
+        return Err(Error::input(
+            folder.join(first),
+            format!(
+                "missing: a finished sweep folder holds {}; absent here: {} (`oesweep run JOB` writes them)",
+                RESULT_FILES.join(", "),
+                missing.join(", ")
+            ),
+        ));
+    }
+    let rows = crate::export::parquet::read_cells(&folder.join(CELLS_FILE))?;
+    let selection: Selection = read_json(&folder.join(SELECTION_FILE))?;
+    let (job, version) = crate::job::read_as_run(&folder.join(JOB_FILE))?;
+    Ok(Results { folder: folder.to_path_buf(), rows, selection, job, version })
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+    serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not the file `oesweep run` writes: {e}")))
+}
