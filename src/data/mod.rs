@@ -53,6 +53,21 @@ pub struct Record {
 }
 
 impl Record {
+    /// A record from samples in memory (the Python package's arrays), `label` standing for the
+    /// file in messages: the same rules as a file's numbers (equal lengths, every sample finite).
+    pub fn from_arrays(label: &str, u: Vec<f64>, y: Vec<f64>) -> Result<Record> {
+        let path = PathBuf::from(label);
+        if u.len() != y.len() {
+            return Err(input_error(&path, format!("u has {} samples and y {}: they must be equal", u.len(), y.len())));
+        }
+        for (name, x) in [("u", &u), ("y", &y)] {
+            if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+                return Err(input_error(&path, format!("sample {i} of {name} is {}, not a finite number", x[i])));
+            }
+        }
+        Ok(Record { path, u, y, u_name: "u".into(), y_name: "y".into() })
+    }
+
     /// Number of samples N.
     pub fn len(&self) -> usize {
         self.u.len()

@@ -33,7 +33,7 @@ mod export_model;
 mod single;
 
 pub use export_model::{PickSpec, export_model};
-pub use single::{FitReport, FitRequest, SpectrumReport, SpectrumRequest, fit, simulate, spectrum};
+pub use single::{FitReport, FitRequest, SpectrumReport, SpectrumRequest, fit, fit_arrays, simulate, spectrum};
 
 /// A job, its data and everything derived from them before estimation starts.
 pub struct Prepared {

@@ -120,8 +120,26 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
         }
         None => None,
     };
+    let (est, val) = job::read_records(&data, validation.as_ref())?;
+    fit_records(req, est, val, val_path)
+}
+
+/// [`fit`] of records in memory (the Python package's arrays; `req`'s file fields only name
+/// them in the report), the estimation record `est` and an optional validation record.
+pub fn fit_arrays(req: &FitRequest, est: data::Record, val: Option<data::Record>) -> Result<FitReport> {
+    req.check()?;
+    let val_path = val.as_ref().map(|v| v.path.clone());
+    fit_records(req, est, val, val_path)
+}
+
+fn fit_records(
+    req: &FitRequest,
+    est: data::Record,
+    val: Option<data::Record>,
+    val_path: Option<PathBuf>,
+) -> Result<FitReport> {
     let job::Inputs { est, val, levels, warnings } =
-        job::read_inputs(&data, validation.as_ref(), req.offset, (req.nb, req.nf, req.delay))?;
+        job::inputs_of_records(est, val, req.offset, (req.nb, req.nf, req.delay))?;
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
             let s = spectral::estimate(&est.u, &est.y, ts, req.spectrum)?;

@@ -30,7 +30,18 @@ pub fn read_inputs(
     offset: Offset,
     (nb_max, nf_max, delay_max): (usize, usize, usize),
 ) -> Result<Inputs> {
-    let (mut est, mut val) = read_records(data, validation)?;
+    let (est, val) = read_records(data, validation)?;
+    inputs_of_records(est, val, offset, (nb_max, nf_max, delay_max))
+}
+
+/// [`read_inputs`] of records already in memory: checked against the largest model, levels
+/// taken out, the data's warnings.
+pub fn inputs_of_records(
+    mut est: Record,
+    mut val: Option<Record>,
+    offset: Offset,
+    (nb_max, nf_max, delay_max): (usize, usize, usize),
+) -> Result<Inputs> {
     data::check_for_model(&est, nb_max, nf_max, delay_max)?;
     if let Some(rec) = &val {
         data::check_for_model(rec, nb_max, nf_max, delay_max)?;

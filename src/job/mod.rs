@@ -13,7 +13,7 @@ use crate::estimate::SolverOptions;
 mod inputs;
 mod validate;
 
-pub use inputs::{Inputs, load_inputs, read_inputs, read_records};
+pub use inputs::{Inputs, inputs_of_records, load_inputs, read_inputs, read_records};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 pub use validate::{check_band, check_k, check_sampling_period};

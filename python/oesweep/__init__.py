@@ -1,0 +1,231 @@
+"""oesweep: robust (Huber) output-error identification and model-order search.
+
+The engine is the Rust library of this repository; this package calls it in-process and
+returns Python objects: ``fit`` gives a :class:`Model`, ``sweep`` and ``load`` a :class:`Sweep`
+whose ``cells`` is a polars DataFrame. Every call releases the GIL while the engine works.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Dict, Optional, Sequence, Union
+
+import numpy as np
+
+from . import _oesweep
+from ._oesweep import DataError, JobError
+
+__all__ = ["fit", "sweep", "load", "Model", "Sweep", "JobError", "DataError", "__version__"]
+__version__ = _oesweep.__version__
+
+ArrayLike = Union[np.ndarray, Sequence[float], Any]
+
+
+def _float64_bytes(name: str, x: ArrayLike) -> bytes:
+    """Any 1-D float or int array (numpy, pandas or polars Series, list) as float64 bytes."""
+    if hasattr(x, "to_numpy"):
+        x = x.to_numpy()
+    a = np.asarray(x)
+    if a.ndim != 1:
+        raise DataError(f"{name}: expected a 1-D array, got {a.ndim} dimensions")
+    if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
+        raise DataError(f"{name}: expected numbers, got dtype {a.dtype}")
+    return np.ascontiguousarray(a, dtype=np.float64).tobytes()
+
+
+class Model:
+    """An OE model ``y = q^-delay B(q^-1)/F(q^-1) (u - input_level) + offset``.
+
+    Attributes mirror the result table's columns: ``b``, ``f``, ``delay``, ``offset``, ``ts``,
+    ``k``, ``gamma``, ``criterion``, ``l1c``, ``fit``, ``fit_val``, ``b_std``, ``f_std``,
+    ``resid_white_p``, ``resid_indep_p``, ``termination``, ``iterations``, and
+    ``covariance`` (over b, f and an estimated offset) when it is known.
+    """
+
+    def __init__(self, fields: Dict[str, Any]):
+        self._fields = dict(fields)
+        for key, value in fields.items():
+            setattr(self, key, value)
+
+    def __getattr__(self, name: str) -> Any:
+        # Fields absent from a source (e.g. a least-squares model has no k) read as None.
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return None
+
+    @property
+    def num_den(self):
+        """``num``, ``den`` in descending powers of z, of equal length (delay as leading zeros)."""
+        d, b, f = int(self.delay), list(self.b), list(self.f)
+        n = max(d + len(b), len(f) + 1)
+        num = [0.0] * n
+        num[d : d + len(b)] = b
+        den = [1.0] + f + [0.0] * (n - 1 - len(f))
+        return np.array(num), np.array(den)
+
+    def simulate(self, u: ArrayLike, initial_state: Optional[ArrayLike] = None) -> np.ndarray:
+        """The model output for input ``u`` (data units), from zero initial state unless
+        ``initial_state`` (``scipy.signal.lfilter``'s ``zi``) is given."""
+        from scipy.signal import lfilter
+
+        u = np.asarray(u, dtype=np.float64) - float(self.input_level or 0.0)
+        num, den = self.num_den
+        if initial_state is None:
+            y = lfilter(num, den, u)
+        else:
+            y, _ = lfilter(num, den, u, zi=np.asarray(initial_state, dtype=np.float64))
+        return y + float(self.offset or 0.0)
+
+    def frequency_response(self, freq_hz: ArrayLike) -> np.ndarray:
+        """G(e^{j 2 pi f ts}) at the frequencies ``freq_hz`` (complex)."""
+        w = 2.0 * np.pi * np.asarray(freq_hz, dtype=np.float64) * float(self.ts)
+        z1 = np.exp(-1j * w)
+        num, den = self.num_den
+        powers = np.arange(len(num))
+        return (num[None, :] * z1[:, None] ** powers).sum(1) / (den[None, :] * z1[:, None] ** powers).sum(1)
+
+    def to_scipy(self):
+        """``scipy.signal.dlti`` with ``dt = ts``."""
+        import warnings
+
+        from scipy.signal import dlti
+
+        num, den = self.num_den
+        with warnings.catch_warnings():
+            # The delay's leading zeros of num are exact, not a badly conditioned numerator.
+            warnings.filterwarnings("ignore", message="Badly conditioned filter coefficients")
+            return dlti(num, den, dt=float(self.ts))
+
+    def to_control(self):
+        """A python-control ``TransferFunction`` with ``dt = ts``."""
+        try:
+            import control
+        except ImportError as e:
+            raise ImportError("Model.to_control needs the python-control package: pip install control") from e
+        num, den = self.num_den
+        return control.tf(num, den, float(self.ts))
+
+    def to_dict(self) -> Dict[str, Any]:
+        """The model's fields (JSON-serialisable); ``Model(d)`` rebuilds it."""
+        return json.loads(json.dumps(self._fields))
+
+    def __repr__(self) -> str:
+        k = f" k = {self.k}" if self.k is not None else " (least squares)"
+        fits = [f"{name} = {v:.2f} %" for name, v in (("fit", self.fit), ("fit_val", self.fit_val)) if v is not None]
+        return f"Model(OE({len(self.b)}, {len(self.f)}) delay {self.delay}{k}{', ' if fits else ''}{', '.join(fits)})"
+
+
+def fit(
+    u: ArrayLike,
+    y: ArrayLike,
+    nb: int,
+    nf: int,
+    k: float,
+    *,
+    delay: int = 1,
+    ts: float = 1.0,
+    offset: str = "estimate",
+    initial_state: str = "estimate",
+    validation: Optional[tuple] = None,
+) -> Model:
+    """Fit OE(nb, nf) with delay by least squares and then Huber's criterion at k: the same
+    numbers as ``oesweep fit --json``. ``validation`` is a ``(u, y)`` pair that only judges."""
+    val_u = val_y = None
+    if validation is not None:
+        val_u, val_y = (_float64_bytes("validation u", validation[0]), _float64_bytes("validation y", validation[1]))
+    text = _oesweep.fit(
+        _float64_bytes("u", u), _float64_bytes("y", y), int(nb), int(nf), float(k), int(delay), float(ts),
+        offset, initial_state, val_u, val_y,
+    )
+    report = json.loads(text)
+    fields = {key: report[key] for key in report if key not in ("ls",)}
+    fields["ts"] = float(ts)
+    fields["least_squares"] = report["ls"]
+    return Model(fields)
+
+
+class Sweep:
+    """A finished run: ``cells`` (polars DataFrame of cells.parquet), ``selection`` (the parsed
+    selection.json), ``m1``, ``m2`` and ``pick(rule)`` as :class:`Model`, ``warnings``."""
+
+    def __init__(self, folder: Union[str, os.PathLike]):
+        self.folder = Path(folder)
+        with open(self.folder / "selection.json") as fh:
+            self.selection = json.load(fh)
+        self.warnings = list(self.selection.get("warnings", []))
+
+    @property
+    def cells(self):
+        import polars as pl
+
+        return pl.read_parquet(self.folder / "cells.parquet")
+
+    def pick(self, rule: Optional[str] = None) -> Model:
+        """The model a rule picked (default: the lead rule), with its covariance."""
+        doc = json.loads(_oesweep.export(str(self.folder), rule))
+        # The row's columns (fits, criteria, evidence) from selection.json, the model's form and
+        # covariance from the export.
+        name = {"m1": "paper_m1", "m2": "paper_m2", None: self.selection.get("rule")}.get(rule, rule)
+        row = ((self.selection.get("picks") or {}).get(name) or {}).get("model") or {}
+        return Model({**row, **doc, "ts": doc["dt"]})
+
+    @property
+    def m1(self) -> Optional[Model]:
+        return self.pick("m1") if self.selection.get("m1") else None
+
+    @property
+    def m2(self) -> Optional[Model]:
+        return self.pick("m2") if self.selection.get("m2") else None
+
+    def report(self) -> Path:
+        """Write ``report.html`` and its figures into the results folder; returns its path."""
+        return Path(_oesweep.report(str(self.folder)))
+
+    def __repr__(self) -> str:
+        return f"Sweep({str(self.folder)!r}, rule = {self.selection.get('rule')})"
+
+
+def sweep(
+    job: Union[str, os.PathLike, Dict[str, Any]],
+    *,
+    threads: Optional[int] = None,
+    progress: bool = True,
+    output: Optional[Union[str, os.PathLike]] = None,
+    force: bool = False,
+) -> Sweep:
+    """Run a job (a job file's path, or a dict with its schema; relative paths in a dict are
+    relative to the current directory) as ``oesweep run`` does; returns the finished run."""
+    if isinstance(job, dict) or output is not None:
+        if not isinstance(job, dict):
+            with open(job) as fh:
+                doc = json.load(fh)
+            base = Path(job).resolve().parent
+            for key in ("data", "validation"):
+                if isinstance(doc.get(key), dict) and "path" in doc[key]:
+                    doc[key]["path"] = str(base / doc[key]["path"])
+            if "output" in doc and output is None:
+                doc["output"] = str(base / doc["output"])
+        else:
+            doc = json.loads(json.dumps(job))
+        if output is not None:
+            doc["output"] = str(Path(output).resolve())
+        with tempfile.NamedTemporaryFile("w", suffix=".json", dir=os.getcwd(), delete=False) as fh:
+            json.dump(doc, fh)
+            path = fh.name
+        try:
+            folder = _oesweep.run(path, threads, progress, force)
+        finally:
+            os.unlink(path)
+    else:
+        folder = _oesweep.run(str(job), threads, progress, force)
+    return Sweep(folder)
+
+
+def load(folder: Union[str, os.PathLike]) -> Sweep:
+    """Open a finished run (made by ``sweep``, ``oesweep run`` or ``oesweep merge``)."""
+    if not (Path(folder) / "selection.json").is_file():
+        raise JobError(f"{folder}: not a finished results folder (no selection.json)")
+    return Sweep(folder)

@@ -1,0 +1,156 @@
+"""The Python package against the command line built from the same checkout (OESWEEP_BIN),
+and the model's forms against scipy."""
+
+import json
+import os
+import shutil
+import subprocess
+import threading
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import pytest
+import scipy.signal
+
+import oesweep
+
+BIN = os.environ.get("OESWEEP_BIN") or shutil.which("oesweep")
+
+
+def record(n=1500, seed=3, spikes=0.05):
+    """An OE(2,2) system with noise and spikes, as numpy arrays."""
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.choice([-1.0, 1.0], n // 3 + 1), 3)[:n]
+    b, f = [0.5, 0.3], [-1.2, 0.6]
+    y = scipy.signal.lfilter([0.0] + b, [1.0] + f, u)
+    y = y + 0.05 * rng.standard_normal(n) + np.where(rng.random(n) < spikes, 2.0, 0.0) + 0.3
+    return u, y
+
+
+def write_csv(path, u, y):
+    with open(path, "w") as fh:
+        fh.write("u,y\n")
+        for a, b in zip(u, y):
+            fh.write(f"{float(a)!r},{float(b)!r}\n")
+
+
+def cli(*args):
+    assert BIN, "set OESWEEP_BIN to the oesweep binary of this checkout"
+    return subprocess.run([BIN, *args], capture_output=True, text=True)
+
+
+def test_fit_equals_the_command_line_bit_for_bit(tmp_path):
+    u, y = record()
+    write_csv(tmp_path / "d.csv", u, y)
+    o = cli("fit", "--data", str(tmp_path / "d.csv"), "--nb", "2", "--nf", "2", "--k", "0.5", "--ts", "0.01", "--json")
+    assert o.returncode == 0, o.stderr
+    want = json.loads(o.stdout)
+    m = oesweep.fit(u, y, 2, 2, 0.5, ts=0.01)
+    got = m.to_dict()
+    for key in ("b", "f", "offset", "criterion", "gamma", "l1c", "fit", "iterations", "termination", "b_std", "f_std",
+                "resid_white_p", "resid_indep_p", "raic", "rbic", "sigma", "input_level"):
+        assert got[key] == want[key], key
+    assert got["least_squares"]["b"] == want["ls"]["b"]
+    # Any dtype and contiguity, pandas/polars Series included.
+    assert oesweep.fit(pl.Series(u), y[::-1][::-1], 2, 2, 0.5, ts=0.01).b == m.b
+    assert oesweep.fit(u.astype(np.float32).astype(np.float64), y, 2, 2, 0.5, ts=0.01).b == m.b
+    assert "OE(2, 2)" in repr(m)
+
+
+def test_the_model_simulates_and_responds_like_scipy(tmp_path):
+    u, y = record()
+    m = oesweep.fit(u, y, 2, 2, 0.5, ts=0.01)
+    sys = m.to_scipy()
+    ys = scipy.signal.dlsim(sys, u - m.input_level)[1]
+    np.testing.assert_allclose(ys[:, 0] + m.offset, m.simulate(u), rtol=0, atol=1e-10)
+    freq = np.linspace(0.1, 40.0, 17)
+    _, h = scipy.signal.dfreqresp(sys, w=2 * np.pi * freq * 0.01)
+    np.testing.assert_allclose(h, m.frequency_response(freq), rtol=1e-10, atol=1e-12)
+    # A JSON round trip keeps every field.
+    assert oesweep.Model(json.loads(json.dumps(m.to_dict()))).to_dict() == m.to_dict()
+    try:
+        import control  # noqa: F401
+    except ImportError:
+        with pytest.raises(ImportError, match="python-control"):
+            m.to_control()
+
+
+def job_for(tmp_path, u, y, out="out"):
+    write_csv(tmp_path / "d.csv", u, y)
+    return {
+        "name": "py",
+        "data": {"path": str(tmp_path / "d.csv"), "u": "u", "y": "y", "ts": 0.01},
+        "grid": {"nb": [1, 3], "nf": [1, 3], "k": [0.5, 1.5]},
+        "output": str(tmp_path / out),
+    }
+
+
+def test_sweep_gives_the_table_and_picks_of_oesweep_run_and_load_reads_it(tmp_path):
+    u, y = record()
+    job = job_for(tmp_path, u, y, "cli")
+    (tmp_path / "job.json").write_text(json.dumps(job))
+    o = cli("run", str(tmp_path / "job.json"), "--quiet")
+    assert o.returncode == 0, o.stderr
+    s = oesweep.sweep(job, output=tmp_path / "py", progress=False)
+    cli_run = oesweep.load(tmp_path / "cli")
+    drop = ["seconds"]
+    assert s.cells.drop(drop).equals(cli_run.cells.drop(drop))
+    sel = lambda d: json.loads((tmp_path / d / "selection.json").read_text())  # noqa: E731
+    assert sel("py") == sel("cli")
+    assert s.m2.b == cli_run.selection["m2"]["b"]
+    assert len(s.m2.covariance) == len(s.m2.parameters)
+    assert s.pick("rbic").b == cli_run.selection["picks"]["rbic"]["model"]["b"]
+    assert s.report().name == "report.html"
+
+
+def test_a_python_thread_runs_while_a_sweep_runs(tmp_path):
+    u, y = record(4000)
+    job = job_for(tmp_path, u, y)
+    job["grid"] = {"nb": [1, 6], "nf": [1, 6], "k": {"from": 0.1, "to": 2.0, "count": 8, "spacing": "log"}}
+    ticks = []
+    stop = threading.Event()
+
+    def tick():
+        while not stop.is_set():
+            ticks.append(1)
+            stop.wait(0.001)
+
+    t = threading.Thread(target=tick, daemon=True)
+    t.start()
+    try:
+        before = len(ticks)
+        oesweep.sweep(job, progress=False, threads=1)
+        during = len(ticks) - before
+    finally:
+        stop.set()
+        t.join()
+    # The count depends on the machine; that it moved at all needs the GIL released.
+    assert during > 0
+
+
+def test_bad_inputs_raise_the_typed_errors_and_write_nothing(tmp_path):
+    u, y = record()
+    y_nan = y.copy()
+    y_nan[7] = np.nan
+    with pytest.raises(oesweep.DataError, match="sample 7 of y is NaN"):
+        oesweep.fit(u, y_nan, 2, 2, 0.5)
+    with pytest.raises(oesweep.DataError, match="must be equal"):
+        oesweep.fit(u, y[:-1], 2, 2, 0.5)
+    with pytest.raises(oesweep.DataError, match="1-D"):
+        oesweep.fit(np.c_[u, u], y, 2, 2, 0.5)
+    with pytest.raises(oesweep.JobError, match="offset"):
+        oesweep.fit(u, y, 2, 2, 0.5, offset="bogus")
+    assert issubclass(oesweep.JobError, ValueError) and issubclass(oesweep.DataError, ValueError)
+    job = job_for(tmp_path, u, y)
+    job["grdi"] = {}
+    with pytest.raises(oesweep.JobError, match="grdi"):
+        oesweep.sweep(job, progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_readme_quick_start_runs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    src = Path(__file__).parent.parent / "examples" / "quickstart.py"
+    exec(compile(src.read_text(), str(src), "exec"), {"__name__": "__main__"})
+    assert (tmp_path / "qs-out" / "cells.parquet").is_file()
