@@ -13,9 +13,11 @@
 //! 3 of the 12 least-squares fits reach lower minima (up to 0.24 %), none higher, their pairs'
 //! Huber cells move with them (the `neighbour` start has 2 of 72 cells higher, up to 0.21 %,
 //! 16 lower), the same picks; and for the fewer least-squares starts of pairs with nested
-//! starts and the creeping budget held until a win (issue 19, third session): the same minima,
-//! every criterion within a relative 6e-10, the same picks. Bless again only for a change that is meant to
-//! change the numbers, and say so in the commit.
+//! starts and the creeping budget held until a win (issue 19): the same minima,
+//! every criterion within a relative 6e-10, the same picks. Issue 28 blessed again to add the
+//! criteria and cancellation columns, every rule's pick and a warning: the old columns and picks
+//! unchanged bit for bit. Bless again only for a change that is meant to change the numbers, and
+//! say so in the commit.
 //!
 //! Bit-for-bit holds on machines with the AVX2+FMA kernels the fixtures were made with (every
 //! machine of this project); elsewhere (the generic kernels round differently) the test
