@@ -9,7 +9,7 @@ venv="$(mktemp -d)/venv"
 trap 'rm -rf "$(dirname "$venv")"' EXIT
 python3 -m venv "$venv"
 "$venv/bin/pip" install --quiet --upgrade pip
-"$venv/bin/pip" install --quiet numpy scipy polars pytest
+"$venv/bin/pip" install --quiet numpy scipy polars pytest control
 # The package as a user installs it (maturin builds the native module in release).
 "$venv/bin/pip" install --quiet ./python
 cargo build --release --quiet

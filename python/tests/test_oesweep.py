@@ -70,10 +70,14 @@ def test_the_model_simulates_and_responds_like_scipy(tmp_path):
     # A JSON round trip keeps every field.
     assert oesweep.Model(json.loads(json.dumps(m.to_dict()))).to_dict() == m.to_dict()
     try:
-        import control  # noqa: F401
+        import control
     except ImportError:
         with pytest.raises(ImportError, match="python-control"):
             m.to_control()
+    else:
+        g = m.to_control()
+        assert g.dt == 0.01
+        np.testing.assert_allclose(g(np.exp(2j * np.pi * freq * 0.01)), m.frequency_response(freq), rtol=1e-9)
 
 
 def job_for(tmp_path, u, y, out="out"):
@@ -102,6 +106,21 @@ def test_sweep_gives_the_table_and_picks_of_oesweep_run_and_load_reads_it(tmp_pa
     assert len(s.m2.covariance) == len(s.m2.parameters)
     assert s.pick("rbic").b == cli_run.selection["picks"]["rbic"]["model"]["b"]
     assert s.report().name == "report.html"
+
+
+def test_load_reads_a_run_merged_from_shards(tmp_path):
+    u, y = record()
+    job = job_for(tmp_path, u, y, "sharded")
+    (tmp_path / "job.json").write_text(json.dumps(job))
+    for shard in ("0/2", "1/2"):
+        o = cli("run", str(tmp_path / "job.json"), "--quiet", "--shard", shard)
+        assert o.returncode == 0, o.stderr
+    o = cli("merge", str(tmp_path / "sharded"))
+    assert o.returncode == 0, o.stderr
+    merged = oesweep.load(tmp_path / "sharded")
+    single = oesweep.sweep(job, output=tmp_path / "single", progress=False)
+    assert merged.cells.drop("seconds").equals(single.cells.drop("seconds"))
+    assert merged.m2.b == single.m2.b and merged.selection["picks"] == single.selection["picks"]
 
 
 def test_a_python_thread_runs_while_a_sweep_runs(tmp_path):
