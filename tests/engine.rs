@@ -107,3 +107,30 @@ fn shards_merge_into_the_uninterrupted_table() {
     // A merge job that runs twice succeeds twice.
     assert!(matches!(engine::merge(&out, false, false).unwrap().end, MergeEnd::AlreadyMerged));
 }
+
+/// A watched run (the Python package's): the caller's stop switch instead of signal handlers,
+/// and the progress counts. Stopped before the first cell, it saves nothing and says so; the
+/// same call then resumes to the uninterrupted table, counting every cell.
+#[test]
+fn a_watched_run_stops_on_the_callers_switch_and_counts_its_cells() {
+    use std::sync::atomic::Ordering;
+    let dir = tempfile::tempdir().unwrap();
+    let expected = reference(dir.path());
+    let job = job(dir.path(), "out");
+    let watch = engine::Watch::default();
+    watch.stop.store(true, Ordering::Relaxed);
+    let opts = RunOptions { watch: Some(watch.clone()), ..whole() };
+    let o = engine::run(&job, &opts, &|_| {}).unwrap();
+    assert!(matches!(o.end, RunEnd::Interrupted) && o.exit_code() == 130, "{o:?}");
+    assert_eq!(
+        (o.finished, watch.done.load(Ordering::Relaxed), watch.total.load(Ordering::Relaxed)),
+        (0, 0, PAIRS * KS)
+    );
+    assert!(!dir.path().join("out/cells.parquet").exists());
+
+    let watch = engine::Watch::default();
+    let o = engine::run(&job, &RunOptions { watch: Some(watch.clone()), ..whole() }, &|_| {}).unwrap();
+    assert!(matches!(o.end, RunEnd::Merged { .. }), "{o:?}");
+    assert_eq!(watch.done.load(Ordering::Relaxed), PAIRS * KS);
+    assert!(table(&dir.path().join("out")) == expected, "the watched table differs from the uninterrupted one");
+}

@@ -9,23 +9,26 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import tempfile
+import time
 from pathlib import Path
-from typing import Any, Dict, Optional, Sequence, Union
+from typing import Any, Callable, Dict, Optional, Sequence, Union
 
 import numpy as np
 
 from . import _oesweep
 from ._oesweep import DataError, JobError
 
-__all__ = ["fit", "sweep", "load", "Model", "Sweep", "JobError", "DataError", "__version__"]
+__all__ = ["fit", "sweep", "load", "spectrum", "Model", "Sweep", "JobError", "DataError", "__version__"]
 __version__ = _oesweep.__version__
 
 ArrayLike = Union[np.ndarray, Sequence[float], Any]
 
 
-def _float64_bytes(name: str, x: ArrayLike) -> bytes:
-    """Any 1-D float or int array (numpy, pandas or polars Series, list) as float64 bytes."""
+def _f64(name: str, x: ArrayLike) -> np.ndarray:
+    """Any 1-D float or int array (numpy, pandas or polars Series, list) as a C-contiguous,
+    aligned float64 numpy array: the array itself when it already is one (no copy)."""
     if hasattr(x, "to_numpy"):
         x = x.to_numpy()
     a = np.asarray(x)
@@ -33,7 +36,13 @@ def _float64_bytes(name: str, x: ArrayLike) -> bytes:
         raise DataError(f"{name}: expected a 1-D array, got {a.ndim} dimensions")
     if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)):
         raise DataError(f"{name}: expected numbers, got dtype {a.dtype}")
-    return np.ascontiguousarray(a, dtype=np.float64).tobytes()
+    return np.require(a, dtype=np.float64, requirements=["C", "A"])
+
+
+def _ref(a: np.ndarray) -> tuple:
+    """The native module's view of an array from :func:`_f64` (address, length); the caller
+    keeps ``a`` alive for the call, and the engine copies it once."""
+    return (a.ctypes.data, a.size)
 
 
 class Model:
@@ -133,12 +142,13 @@ def fit(
 ) -> Model:
     """Fit OE(nb, nf) with delay by least squares and then Huber's criterion at k: the same
     numbers as ``oesweep fit --json``. ``validation`` is a ``(u, y)`` pair that only judges."""
-    val_u = val_y = None
+    u, y = _f64("u", u), _f64("y", y)
+    val = None
     if validation is not None:
-        val_u, val_y = (_float64_bytes("validation u", validation[0]), _float64_bytes("validation y", validation[1]))
+        val = (_f64("validation u", validation[0]), _f64("validation y", validation[1]))
     text = _oesweep.fit(
-        _float64_bytes("u", u), _float64_bytes("y", y), int(nb), int(nf), float(k), int(delay), float(ts),
-        offset, initial_state, val_u, val_y,
+        _ref(u), _ref(y), int(nb), int(nf), float(k), int(delay), float(ts), offset, initial_state,
+        *((_ref(val[0]), _ref(val[1])) if val is not None else (None, None)),
     )
     report = json.loads(text)
     fields = {key: report[key] for key in report if key not in ("ls",)}
@@ -188,40 +198,122 @@ class Sweep:
         return f"Sweep({str(self.folder)!r}, rule = {self.selection.get('rule')})"
 
 
+class _LineProgress:
+    """A plain line that rewrites itself (``\\r``), for notebooks and other non-terminals."""
+
+    def __init__(self, stream=None, every: float = 0.5):
+        self.stream = stream if stream is not None else sys.stderr
+        self.every = every
+        self.start = time.monotonic()
+        self.last = -every
+        self.first = None
+
+    def __call__(self, done: int, total: int) -> None:
+        now = time.monotonic() - self.start
+        if self.first is None:
+            self.first = done  # cells of a resumed checkpoint do not count towards the rate
+        if total == 0 or (now - self.last < self.every and done < total):
+            return
+        self.last = now
+        rate = (done - self.first) / max(now, 1e-9)
+        eta = f", ETA {(total - done) / rate:.0f} s" if 0 < rate and done < total else ""
+        self.stream.write(f"\r{done}/{total} cells, {rate:.1f} cells/s, {now:.0f} s{eta}   ")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.last >= 0:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def _on_terminal() -> bool:
+    try:
+        return sys.stderr.isatty() and os.isatty(2)
+    except (AttributeError, ValueError, OSError):
+        return False
+
+
 def sweep(
     job: Union[str, os.PathLike, Dict[str, Any]],
     *,
     threads: Optional[int] = None,
-    progress: bool = True,
+    progress: Union[bool, Callable[[int, int], None]] = True,
     output: Optional[Union[str, os.PathLike]] = None,
     force: bool = False,
 ) -> Sweep:
     """Run a job (a job file's path, or a dict with its schema; relative paths in a dict are
-    relative to the current directory) as ``oesweep run`` does; returns the finished run."""
-    if isinstance(job, dict) or output is not None:
-        if not isinstance(job, dict):
-            with open(job) as fh:
-                doc = json.load(fh)
-            base = Path(job).resolve().parent
-            for key in ("data", "validation"):
-                if isinstance(doc.get(key), dict) and "path" in doc[key]:
-                    doc[key]["path"] = str(base / doc[key]["path"])
-            if "output" in doc and output is None:
-                doc["output"] = str(base / doc["output"])
-        else:
-            doc = json.loads(json.dumps(job))
-        if output is not None:
-            doc["output"] = str(Path(output).resolve())
-        with tempfile.NamedTemporaryFile("w", suffix=".json", dir=os.getcwd(), delete=False) as fh:
-            json.dump(doc, fh)
-            path = fh.name
-        try:
-            folder = _oesweep.run(path, threads, progress, force)
-        finally:
-            os.unlink(path)
+    relative to the current directory) as ``oesweep run`` does; returns the finished run.
+
+    ``progress``: ``True`` draws the engine's bar on a terminal and a plain updating line
+    elsewhere (a notebook); ``False`` is silent; a callable is called as ``progress(done,
+    total)`` (Huber cells) about ten times a second and once at the end.
+
+    Ctrl-C raises ``KeyboardInterrupt`` once the cells in flight are saved (well within a
+    second); the checkpoint stays in the output folder and the same call resumes. ``force``
+    starts over instead.
+    """
+    if callable(progress):
+        engine_bar, callback = False, progress
+    elif progress and _on_terminal():
+        engine_bar, callback = True, None
     else:
-        folder = _oesweep.run(str(job), threads, progress, force)
+        engine_bar, callback = False, (_LineProgress() if progress else None)
+    try:
+        if isinstance(job, dict) or output is not None:
+            if not isinstance(job, dict):
+                with open(job) as fh:
+                    doc = json.load(fh)
+                base = Path(job).resolve().parent
+                for key in ("data", "validation"):
+                    records = doc.get(key)
+                    for record in records if isinstance(records, list) else [records]:
+                        if isinstance(record, dict) and "path" in record:
+                            record["path"] = str(base / record["path"])
+                if "output" in doc and output is None:
+                    doc["output"] = str(base / doc["output"])
+            else:
+                doc = json.loads(json.dumps(job))
+            if output is not None:
+                doc["output"] = str(Path(output).resolve())
+            with tempfile.NamedTemporaryFile("w", suffix=".json", dir=os.getcwd(), delete=False) as fh:
+                json.dump(doc, fh)
+                path = fh.name
+            try:
+                folder = _oesweep.run(path, threads, engine_bar, force, callback)
+            finally:
+                os.unlink(path)
+        else:
+            folder = _oesweep.run(str(job), threads, engine_bar, force, callback)
+    finally:
+        if isinstance(callback, _LineProgress):
+            callback.close()
     return Sweep(folder)
+
+
+def spectrum(u: ArrayLike, y: ArrayLike, ts: float, method: str = "robust"):
+    """The nonparametric frequency response ``G(f) = S_yu / S_uu`` of a record, as ``oesweep
+    spectrum`` computes it (``method``: ``"robust"`` cleans the output's spikes first,
+    ``"welch"`` is plain Welch). Returns a polars DataFrame with one row per frequency bin where
+    the input has power: ``freq_hz``, ``re``, ``im``, ``magnitude``, ``phase_deg``,
+    ``coherence`` and an approximate 95 % band of the magnitude, ``mag_lower``, ``mag_upper``
+    (``.to_pandas()`` with pandas installed)."""
+    import polars as pl
+
+    u, y = _f64("u", u), _f64("y", y)
+    report = json.loads(_oesweep.spectrum(_ref(u), _ref(y), float(ts), method))
+    g = np.array(report["re"]) + 1j * np.array(report["im"])
+    return pl.DataFrame(
+        {
+            "freq_hz": report["freq_hz"],
+            "re": report["re"],
+            "im": report["im"],
+            "magnitude": np.abs(g),
+            "phase_deg": np.degrees(np.angle(g)),
+            "coherence": report["coherence"],
+            "mag_lower": report["mag_lower"],
+            "mag_upper": report["mag_upper"],
+        }
+    )
 
 
 def load(folder: Union[str, os.PathLike]) -> Sweep:

@@ -4,13 +4,15 @@
 //! call releases the GIL while the engine works.
 
 use oesweep::data::{ColumnRef, Offset, Record};
-use oesweep::engine::{self, FitRequest, RunEnd, RunOptions};
+use oesweep::engine::{self, FitRequest, RunEnd, RunOptions, Watch};
 use oesweep::estimate::{InitialState, SolverOptions};
 use oesweep::spectral::SpectrumMethod;
 use pyo3::create_exception;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
+use std::time::Duration;
 
 create_exception!(_oesweep, JobError, PyValueError, "A job, a setting or a results folder that is wrong.");
 create_exception!(_oesweep, DataError, PyValueError, "A data file or array that is wrong.");
@@ -26,11 +28,22 @@ fn to_py(e: oesweep::Error) -> PyErr {
     }
 }
 
-fn floats(name: &str, bytes: &[u8]) -> PyResult<Vec<f64>> {
-    if !bytes.len().is_multiple_of(8) {
-        return Err(DataError::new_err(format!("{name}: not float64 data")));
+/// The samples of a float64 array the Python layer made C-contiguous and aligned
+/// (`oesweep._f64`), by address and length: copied once, here, into the record. The abi3 wheel
+/// (CPython >= 3.9) has no buffer protocol in the limited API, and `ndarray.tobytes()` would
+/// copy twice.
+fn floats(name: &str, array: (usize, usize)) -> PyResult<Vec<f64>> {
+    let (addr, len) = array;
+    if len == 0 {
+        return Ok(Vec::new());
     }
-    Ok(bytes.chunks_exact(8).map(|c| f64::from_ne_bytes(c.try_into().expect("8 bytes"))).collect())
+    if addr == 0 || !addr.is_multiple_of(std::mem::align_of::<f64>()) {
+        return Err(DataError::new_err(format!("{name}: not an aligned float64 array")));
+    }
+    // SAFETY: the caller holds the GIL and a reference to the contiguous, aligned float64
+    // array of `len` elements at `addr` (the Python layer keeps it alive for the call), and the
+    // copy is made before the GIL is released.
+    Ok(unsafe { std::slice::from_raw_parts(addr as *const f64, len) }.to_vec())
 }
 
 fn parse<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> PyResult<T> {
@@ -38,14 +51,14 @@ fn parse<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> PyResult<T> {
         .map_err(|e| JobError::new_err(format!("{what} {v:?}: {e}")))
 }
 
-/// One model (`oesweep fit --json`'s report as JSON text) from float64 bytes.
+/// One model (`oesweep fit --json`'s report as JSON text) from float64 arrays.
 #[pyfunction]
 #[pyo3(signature = (u, y, nb, nf, k, delay, ts, offset, initial_state, val_u=None, val_y=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit(
     py: Python<'_>,
-    u: &[u8],
-    y: &[u8],
+    u: (usize, usize),
+    y: (usize, usize),
     nb: usize,
     nf: usize,
     k: f64,
@@ -53,8 +66,8 @@ fn fit(
     ts: f64,
     offset: &str,
     initial_state: &str,
-    val_u: Option<&[u8]>,
-    val_y: Option<&[u8]>,
+    val_u: Option<(usize, usize)>,
+    val_y: Option<(usize, usize)>,
 ) -> PyResult<String> {
     let est = Record::from_arrays("<u, y arrays>", floats("u", u)?, floats("y", y)?).map_err(to_py)?;
     let val = match (val_u, val_y) {
@@ -88,25 +101,85 @@ fn fit(
     serde_json::to_string(&report).map_err(|e| PyRuntimeError::new_err(e.to_string()))
 }
 
-/// Run a job file (`oesweep run`); returns the results folder. An interrupted run raises
-/// KeyboardInterrupt with the checkpoint kept (the same call resumes).
+/// How often a running sweep looks at Python's signals and calls the progress callback.
+const POLL: Duration = Duration::from_millis(100);
+
+/// Run a job file (`oesweep run`); returns the results folder. The engine runs on a thread of
+/// its own while this one, without the GIL, wakes every [`POLL`] to let Python handle its
+/// signals and to call `on_progress(done, total)`: Ctrl-C (or any exception the callback
+/// raises) stops the run with the checkpoint kept and is raised here once the cells in flight
+/// are saved, so the same call resumes. Python's own SIGINT handler stays in place.
 #[pyfunction]
-#[pyo3(signature = (job, threads=None, progress=true, force=false))]
-fn run(py: Python<'_>, job: PathBuf, threads: Option<usize>, progress: bool, force: bool) -> PyResult<String> {
-    let mut opts = RunOptions { quiet: !progress, force, ..RunOptions::default() };
+#[pyo3(signature = (job, threads=None, progress=true, force=false, on_progress=None))]
+fn run(
+    py: Python<'_>,
+    job: PathBuf,
+    threads: Option<usize>,
+    progress: bool,
+    force: bool,
+    on_progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    let watch = Watch::default();
+    let mut opts = RunOptions { quiet: !progress, force, watch: Some(watch.clone()), ..RunOptions::default() };
     if let Some(t) = threads {
         opts.threads = t;
     }
-    let outcome = py.detach(|| engine::run(&job, &opts, &|_| {})).map_err(to_py)?;
-    match outcome.end {
-        RunEnd::Interrupted => Err(PyKeyboardInterrupt::new_err(format!(
-            "interrupted: {} of {} cells finished, saved in {}; the same call resumes",
+    // The callback, then Python's pending signals (a KeyboardInterrupt).
+    let poll = || -> PyResult<()> {
+        Python::attach(|py| {
+            if let Some(cb) = &on_progress {
+                cb.call1(py, (watch.done.load(Ordering::Relaxed), watch.total.load(Ordering::Relaxed)))?;
+            }
+            py.check_signals()
+        })
+    };
+    let (outcome, raised) = py.detach(|| {
+        std::thread::scope(|s| {
+            let engine = s.spawn(|| engine::run(&job, &opts, &|_| {}));
+            let mut raised = None;
+            while !engine.is_finished() {
+                std::thread::sleep(POLL);
+                if raised.is_none()
+                    && let Err(e) = poll()
+                {
+                    watch.stop.store(true, Ordering::Relaxed);
+                    raised = Some(e);
+                }
+            }
+            // The last word: a run that ended between two polls still reports its end, and a
+            // Ctrl-C that came with it is not lost.
+            if raised.is_none() {
+                raised = poll().err();
+            }
+            (engine.join(), raised)
+        })
+    });
+    let outcome = outcome.map_err(|_| PyRuntimeError::new_err("the oesweep engine panicked"))?.map_err(to_py)?;
+    let saved = || {
+        format!(
+            "{} of {} cells finished, saved in {}; the same call resumes",
             outcome.finished,
             outcome.cells,
             outcome.checkpoint.display()
-        ))),
-        _ => Ok(outcome.out.display().to_string()),
+        )
+    };
+    match (raised, &outcome.end) {
+        (Some(e), RunEnd::Interrupted) if e.is_instance_of::<PyKeyboardInterrupt>(py) => {
+            Err(PyKeyboardInterrupt::new_err(format!("interrupted: {}", saved())))
+        }
+        (Some(e), _) => Err(e),
+        (None, RunEnd::Interrupted) => Err(PyKeyboardInterrupt::new_err(format!("interrupted: {}", saved()))),
+        (None, _) => Ok(outcome.out.display().to_string()),
     }
+}
+
+/// The spectral estimate of float64 arrays (`oesweep spectrum --json`'s report as JSON text).
+#[pyfunction]
+fn spectrum(py: Python<'_>, u: (usize, usize), y: (usize, usize), ts: f64, method: &str) -> PyResult<String> {
+    let rec = Record::from_arrays("<u, y arrays>", floats("u", u)?, floats("y", y)?).map_err(to_py)?;
+    let method = parse::<SpectrumMethod>("method", method)?;
+    let report = py.detach(|| engine::spectrum_arrays(&rec, ts, method)).map_err(to_py)?;
+    serde_json::to_string(&report).map_err(|e| PyRuntimeError::new_err(e.to_string()))
 }
 
 /// Write the review report of a results folder; returns the page's path.
@@ -132,6 +205,7 @@ fn _oesweep(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(report, m)?)?;
+    m.add_function(wrap_pyfunction!(spectrum, m)?)?;
     m.add_function(wrap_pyfunction!(export, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

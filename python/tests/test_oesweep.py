@@ -5,7 +5,9 @@ import json
 import os
 import shutil
 import subprocess
+import signal
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -173,3 +175,68 @@ def test_the_readme_quick_start_runs(tmp_path, monkeypatch):
     src = Path(__file__).parent.parent / "examples" / "quickstart.py"
     exec(compile(src.read_text(), str(src), "exec"), {"__name__": "__main__"})
     assert (tmp_path / "qs-out" / "cells.parquet").is_file()
+
+
+def test_ctrl_c_raises_keyboard_interrupt_keeps_the_checkpoint_and_the_same_call_resumes(tmp_path):
+    u, y = record(3000)
+    job = job_for(tmp_path, u, y, "interrupted")
+    job["grid"] = {"nb": [1, 5], "nf": [1, 5], "k": {"from": 0.1, "to": 2.0, "count": 6, "spacing": "log"}}
+    calls = []
+
+    def ctrl_c(done, total):
+        # A real SIGINT, sent the first time the engine reports a finished cell (or, should the
+        # run end between two polls, at its last report): Python's own handler must see it.
+        calls.append((done, total))
+        if done > 0 and len([c for c in calls if c[0] > 0]) == 1:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with pytest.raises(KeyboardInterrupt):
+        oesweep.sweep(job, progress=ctrl_c, threads=1)
+    out = tmp_path / "interrupted"
+    if not (out / "selection.json").exists():
+        # Stopped mid-run: the finished cells are in the checkpoint, and no result file.
+        assert any((out / "parts").iterdir())
+        assert not (out / "cells.parquet").exists()
+    seen = []
+    resumed = oesweep.sweep(job, progress=lambda d, t: seen.append((d, t)), threads=2)
+    whole = oesweep.sweep(job, output=tmp_path / "whole", progress=False)
+    assert resumed.cells.drop("seconds").equals(whole.cells.drop("seconds"))
+    assert resumed.selection == whole.selection
+    # The progress callback ends on every cell done, after a Ctrl-C as without one.
+    assert seen[-1][0] == seen[-1][1] == resumed.cells.filter(pl.col("k").is_not_null()).height
+    # Python's SIGINT handling is Python's again: a Ctrl-C after the sweep is a plain
+    # KeyboardInterrupt, not an exit of the process.
+    with pytest.raises(KeyboardInterrupt):
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(100):
+            time.sleep(0.01)
+
+
+def test_progress_in_a_notebook_is_one_updating_line(tmp_path, monkeypatch, capsys):
+    u, y = record()
+    job = job_for(tmp_path, u, y)
+    monkeypatch.setattr(oesweep, "_on_terminal", lambda: False)
+    s = oesweep.sweep(job)
+    err = capsys.readouterr().err
+    total = s.cells.filter(pl.col("k").is_not_null()).height
+    assert err.startswith("\r") and err.endswith("\n") and "\n" not in err[:-1]
+    assert f"{total}/{total} cells" in err.split("\r")[-1]
+    oesweep.sweep(job, progress=False, force=True)
+    assert capsys.readouterr().err == ""
+
+
+def test_spectrum_equals_the_command_line(tmp_path):
+    u, y = record(4096)
+    write_csv(tmp_path / "d.csv", u, y)
+    for method in ("robust", "welch"):
+        o = cli("spectrum", "--data", str(tmp_path / "d.csv"), "--ts", "0.01", "--method", method, "--json")
+        assert o.returncode == 0, o.stderr
+        want = json.loads(o.stdout)
+        got = oesweep.spectrum(pl.Series(u), y, 0.01, method=method)
+        for key in ("freq_hz", "re", "im", "coherence", "mag_lower", "mag_upper"):
+            assert got[key].to_list() == want[key], (method, key)
+        np.testing.assert_allclose(got["magnitude"], np.hypot(want["re"], want["im"]))
+    with pytest.raises(oesweep.JobError, match="method"):
+        oesweep.spectrum(u, y, 0.01, method="periodogram")
+    with pytest.raises(oesweep.JobError, match="ts"):
+        oesweep.spectrum(u, y, -1.0)

@@ -200,6 +200,7 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         checkpoint_every: a.checkpoint_every,
         shard: a.shard,
         report: a.report,
+        watch: None,
     };
     // The data's warnings are printed when the records are read; the picks' at the end.
     let printed = std::cell::RefCell::new(Vec::new());

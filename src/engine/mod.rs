@@ -27,13 +27,17 @@ use crate::sweep::{self, Context};
 use crate::table::CellRow;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 
 mod export_model;
 mod single;
 
 pub use export_model::{PickSpec, export_model};
-pub use single::{FitReport, FitRequest, SpectrumReport, SpectrumRequest, fit, fit_arrays, simulate, spectrum};
+pub use single::{
+    FitReport, FitRequest, SpectrumReport, SpectrumRequest, fit, fit_arrays, simulate, spectrum, spectrum_arrays,
+};
 
 /// A job, its data and everything derived from them before estimation starts.
 pub struct Prepared {
@@ -101,6 +105,24 @@ pub struct RunOptions {
     pub shard: Option<Shard>,
     /// Also write the HTML report (whole runs only).
     pub report: bool,
+    /// A caller that watches the run itself (an embedding program such as the Python
+    /// package): no signal handlers are installed, the caller stops the run through
+    /// [`Watch::stop`] and reads the progress from [`Watch::done`]. None: SIGINT/SIGTERM stop it.
+    pub watch: Option<Watch>,
+}
+
+/// The progress and stop switch of a run shared with the caller ([`RunOptions::watch`]).
+/// A process that has its own SIGINT handling (Python's `KeyboardInterrupt`) must not have it
+/// replaced by the run's handlers, which after the run would turn every Ctrl-C into an exit.
+#[derive(Clone, Debug, Default)]
+pub struct Watch {
+    /// Set by the caller: the workers hand out no more cells, the run returns
+    /// [`RunEnd::Interrupted`] with the finished rows saved, and the same call resumes.
+    pub stop: Arc<AtomicBool>,
+    /// Huber cells finished, those of a resumed checkpoint included.
+    pub done: Arc<AtomicUsize>,
+    /// Huber cells of the plan (set once the job is read; 0 before).
+    pub total: Arc<AtomicUsize>,
 }
 
 impl Default for RunOptions {
@@ -112,6 +134,7 @@ impl Default for RunOptions {
             checkpoint_every: checkpoint::BATCH_SECONDS,
             shard: None,
             report: false,
+            watch: None,
         }
     }
 }
@@ -253,14 +276,28 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
         checkpoint::BATCH_ROWS,
     );
     let progress = Progress::new(cells - resumed_huber, opts.quiet);
+    if let Some(w) = &opts.watch {
+        w.total.store(cells, Ordering::Relaxed);
+        w.done.store(resumed_huber, Ordering::Relaxed);
+    }
     let outcome = {
-        let signals = StopOnSignal::install();
+        let signals;
+        let stop: &AtomicBool = match &opts.watch {
+            Some(w) => &w.stop,
+            None => {
+                signals = StopOnSignal::install();
+                signals.flag()
+            }
+        };
         let tx = writer.sender();
         // A send fails only if the writer thread is gone; the row is still in the outcome.
         let on_row = |row: &CellRow| {
             let _ = tx.send(row.clone());
+            if let Some(w) = opts.watch.as_ref().filter(|_| row.is_huber()) {
+                w.done.fetch_add(1, Ordering::Relaxed);
+            }
         };
-        let control = sweep::Control { done: existing.rows, on_row: &on_row, stop: signals.flag() };
+        let control = sweep::Control { done: existing.rows, on_row: &on_row, stop };
         sweep::run(&plan, &p.context(), opts.threads, &progress, control)
     };
     progress.finish();

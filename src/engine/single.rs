@@ -223,14 +223,23 @@ pub fn spectrum(req: &SpectrumRequest) -> Result<SpectrumReport> {
     }
     let opts = ReadOptions { rows: req.rows, ..ReadOptions::default() };
     let rec = data::read_record_with(&req.data, &req.u, &req.y, &opts)?;
-    let est =
-        spectral::estimate(&rec.u, &rec.y, req.ts, req.method).map_err(|e| Error::input(&req.data, e.to_string()))?;
+    spectrum_of(&rec, req.ts, req.method)
+}
+
+/// [`spectrum`] of a record in memory (the Python package's arrays), `ts` checked as `ts`.
+pub fn spectrum_arrays(rec: &data::Record, ts: f64, method: spectral::SpectrumMethod) -> Result<SpectrumReport> {
+    job::check_sampling_period(ts).map_err(|m| Error::Invalid(format!("ts {m}")))?;
+    spectrum_of(rec, ts, method)
+}
+
+fn spectrum_of(rec: &data::Record, ts: f64, method: spectral::SpectrumMethod) -> Result<SpectrumReport> {
+    let est = spectral::estimate(&rec.u, &rec.y, ts, method).map_err(|e| Error::input(&rec.path, e.to_string()))?;
     let bins: Vec<usize> = (0..est.freq_hz.len()).filter(|&k| est.re[k].is_finite()).collect();
     let bands: Vec<(f64, f64)> = bins.iter().map(|&k| est.magnitude_band(k).unwrap_or((f64::NAN, f64::NAN))).collect();
     Ok(SpectrumReport {
-        data: req.data.clone(),
+        data: rec.path.clone(),
         n: rec.len(),
-        method: req.method,
+        method,
         replaced: est.replaced,
         segment: est.segment,
         segments: est.segments,

@@ -108,7 +108,7 @@ impl ModelOut {
             Some(rows) => {
                 let rows: Vec<String> = rows.iter().map(|r| row(r)).collect();
                 let _ = writeln!(s, "% over [{}]", self.parameters.join(", "));
-                let _ = writeln!(s, "covariance = [{}];", rows.join("; ..\n  "));
+                let _ = writeln!(s, "covariance = [{}];", rows.join("; ...\n  "));
             }
             None => {
                 let _ = writeln!(s, "covariance = []; % not known");
@@ -267,7 +267,7 @@ mod tests {
         }
         let s = model().to_matlab();
         assert!(s.contains("G = tf(num, den, Ts);") && s.contains("nk = 2;"), "{s}");
-        assert!(s.contains("covariance = [4, 1, 5e-1, 1e-1; ..\n  1, 3,"), "{s}");
+        assert!(s.contains("covariance = [4, 1, 5e-1, 1e-1; ...\n  1, 3,"), "{s}");
         let j = model().to_json();
         assert_eq!(j["covariance"][1][1], 3.0);
         assert_eq!(j["dt"], 1e-3);
