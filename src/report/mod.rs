@@ -116,9 +116,11 @@ impl Review {
                 ))
             }
         };
-        gone(&job.job.data, "estimation")?;
-        if let Some(v) = &job.job.validation {
-            gone(v, "validation")?;
+        for spec in &job.job.data.specs {
+            gone(spec, "estimation")?;
+        }
+        for spec in job.job.validation.iter().flat_map(|v| &v.specs) {
+            gone(spec, "validation")?;
         }
         let (est, val) = crate::job::read_records(&job.job.data, job.job.validation.as_ref())?;
         let u0 = selection.input_level.unwrap_or(0.0);
@@ -375,7 +377,7 @@ fn bode_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -> Result<Se
     let picks: Vec<Picked> = m1.into_iter().chain(m2).collect();
     let mut figs = Vec::new();
     let mut notes = Vec::new();
-    match crate::spectral::estimate(&s.est.u, &s.est.y, s.ts(), s.job.job.spectrum) {
+    match crate::spectral::estimate_within(&s.est.u, &s.est.y, &s.est.seams, s.ts(), s.job.job.spectrum) {
         Ok(est) => {
             for p in &picks {
                 let file = format!("{FIGURE_PREFIX}bode-{}.svg", p.name.to_lowercase());
