@@ -96,7 +96,13 @@ struct Review {
 impl Review {
     /// A table row's model output on a record, in the data's units.
     fn output_of_row(&self, r: &CellRow, rec: &Record, is: InitialState) -> Vec<f64> {
-        model_output(&r.fit.b, &r.fit.f, r.key.delay as usize, r.fit.offset, self.u0, &rec.u, &rec.y, is)
+        // Each experiment of a list from its own initial state (METHOD.md 16).
+        let mut out = Vec::with_capacity(rec.len());
+        for e in rec.experiments() {
+            let (u, y) = (&rec.u[e.clone()], &rec.y[e]);
+            out.extend(model_output(&r.fit.b, &r.fit.f, r.key.delay as usize, r.fit.offset, self.u0, u, y, is));
+        }
+        out
     }
 
     fn load(folder: &Path) -> Result<Review> {
