@@ -38,7 +38,7 @@ fn setup() -> Setup {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_est.csv");
     let rec = oesweep::data::read_record(&path, "u", "y").expect("bundled estimation data");
     let (u, y) = (rec.u, rec.y);
-    let prob = Problem { u: &u, y: &y, nb: NB, nf: NF, delay: DELAY, offset: false };
+    let prob = Problem { u: &u, y: &y, nb: NB, nf: NF, delay: DELAY, offset: false, seams: &[] };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
@@ -117,7 +117,7 @@ fn normal_equations(c: &mut Criterion, s: &Setup) {
 }
 
 fn one_iteration(c: &mut Criterion, s: &Setup) {
-    let prob = Problem { u: &s.u, y: &s.y, nb: NB, nf: NF, delay: DELAY, offset: false };
+    let prob = Problem { u: &s.u, y: &s.y, nb: NB, nf: NF, delay: DELAY, offset: false, seams: &[] };
     let opts = SolverOptions { max_iterations: 1, ..Default::default() };
     let loss = Loss::Huber { gamma: s.gamma };
     let mut ws = Workspace::new();

@@ -94,7 +94,7 @@ fn main() {
             .par_iter()
             .map_init(Workspace::new, |ws, &p| {
                 let (nb, nf) = (plan.pairs[p].nb, plan.pairs[p].nf);
-                let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false };
+                let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false, seams: &[] };
                 let subs: &[usize] = if opts.nested_starts { &subs[p] } else { &[] };
                 let nested: Vec<Vec<f64>> = subs
                     .iter()
@@ -115,7 +115,7 @@ fn main() {
         .zip(&ls_fits)
         .map_init(Workspace::new, |ws, (((nb, nf), lines), fit)| {
             let (nb, nf) = (*nb, *nf);
-            let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false };
+            let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false, seams: &[] };
             let t = Instant::now();
             let (ls, ls_seconds) = fit.as_ref().expect("every pair fitted");
             let mut ls_cmp = (f64::NAN, String::new());

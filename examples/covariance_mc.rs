@@ -247,7 +247,7 @@ fn main() {
         let (uo, y0o) = if per_input { make(5000 + seed) } else { (u0.clone(), y00.clone()) };
         let (u, y0) = (&uo[..], &y0o[..]);
         let y: Vec<f64> = y0.iter().map(|v| v + sigma * rng.normal()).collect();
-        let prob = Problem { u, y: &y, nb, nf, delay, offset: false };
+        let prob = Problem { u, y: &y, nb, nf, delay, offset: false, seams: &[] };
         let ls = estimate::fit_ls_from(&prob, &truth, &judge, &opts, &mut ws);
         let th = ls.theta();
         if seed < 5 {

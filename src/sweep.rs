@@ -49,7 +49,12 @@ pub struct Context<'a> {
 
 impl Context<'_> {
     fn judge(&self) -> Judge<'_> {
-        Judge { validation: self.val.map(|v| (&v.u[..], &v.y[..])), band: self.band, initial_state: self.initial_state }
+        Judge {
+            validation: self.val.map(|v| (&v.u[..], &v.y[..])),
+            validation_seams: self.val.map_or(&[][..], |v| &v.seams[..]),
+            band: self.band,
+            initial_state: self.initial_state,
+        }
     }
 
     fn problem(&self, pair: &Structure) -> Problem<'_> {
@@ -60,6 +65,7 @@ impl Context<'_> {
             nf: pair.nf,
             delay: pair.delay,
             offset: self.levels.mode.estimated(),
+            seams: &self.est.seams,
         }
     }
 

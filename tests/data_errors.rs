@@ -205,7 +205,7 @@ fn parquet_no_rows_and_garbage() {
 }
 
 fn record(name: &str, u: Vec<f64>, y: Vec<f64>) -> Record {
-    Record { path: PathBuf::from(name), u, y, u_name: "u".into(), y_name: "y".into() }
+    Record { path: PathBuf::from(name), u, y, u_name: "u".into(), y_name: "y".into(), seams: Vec::new() }
 }
 
 fn model_err(rec: &Record, nb: usize, nf: usize, delay: usize, want: &str) {

@@ -18,7 +18,7 @@ fn recover(b: &[f64], f: &[f64], n: usize) {
     let u = binary_input(n, 3, 10.0, 7);
     let y = oe::simulate_vec(b, f, 1, &u);
     let truth = [b, f].concat();
-    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false };
+    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false, seams: &[] };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let judge = Judge::default();
@@ -156,9 +156,13 @@ fn outlier_data(frac: f64) -> Outlier {
 #[test]
 fn huber_beats_least_squares_with_outliers_and_invariants_hold() {
     let d = outlier_data(0.10);
-    let prob = Problem { u: &d.u, y: &d.y, nb: 10, nf: 10, delay: 1, offset: false };
-    let judge =
-        Judge { validation: Some((&d.uv, &d.yv0)), band: None, initial_state: oesweep::estimate::InitialState::Zero };
+    let prob = Problem { u: &d.u, y: &d.y, nb: 10, nf: 10, delay: 1, offset: false, seams: &[] };
+    let judge = Judge {
+        validation: Some((&d.uv, &d.yv0)),
+        validation_seams: &[],
+        band: None,
+        initial_state: oesweep::estimate::InitialState::Zero,
+    };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     ws.record_trace = true;
@@ -189,7 +193,7 @@ fn chains_recover_the_truth_merge_duplicates_and_keep_the_best() {
     let u = binary_input(2000, 3, 10.0, 7);
     let y = oe::simulate_vec(&b, &f, 1, &u);
     let truth = [&b[..], &f[..]].concat();
-    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: false };
+    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: false, seams: &[] };
     let (opts, judge, mut ws) = (SolverOptions::default(), Judge::default(), Workspace::new());
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
     // The same start twice plus a poor one: all three reach the single (true) minimum.
@@ -241,7 +245,7 @@ fn warm_damping_converges_to_a_minimum_in_fewer_iterations() {
         .iter()
         .map(|v| v + rng.normal() + if rng.next() < 0.05 { 6.0 } else { 0.0 })
         .collect();
-    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false };
+    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false, seams: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let cold = SolverOptions { warm_lambda0: opts.lambda0, ..opts.clone() };
@@ -303,7 +307,7 @@ impl Oe1010 {
     }
 
     fn prob(&self) -> Problem<'_> {
-        Problem { u: &self.u, y: &self.y, nb: self.nb, nf: self.nf, delay: 1, offset: false }
+        Problem { u: &self.u, y: &self.y, nb: self.nb, nf: self.nf, delay: 1, offset: false, seams: &[] }
     }
 
     /// The least-squares fit (default settings) and a start far from it (see [`shrunk`]).
@@ -433,7 +437,7 @@ fn a_creeping_chain_keeps_its_budget_while_it_loses() {
 #[test]
 fn the_backward_walk_finds_the_branch_below_a_fold_and_is_never_worse() {
     let rec = piezo_estimation_record();
-    let prob = Problem { u: &rec.u, y: &rec.y, nb: 8, nf: 4, delay: 1, offset: false };
+    let prob = Problem { u: &rec.u, y: &rec.y, nb: 8, nf: 4, delay: 1, offset: false, seams: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
@@ -473,7 +477,7 @@ fn the_backward_walk_finds_the_branch_below_a_fold_and_is_never_worse() {
 fn the_top_cell_is_no_worse_than_its_fits_from_theta_ls() {
     let rec = piezo_estimation_record();
     for (nb, nf, cold_lower) in [(14, 11, false), (12, 8, true)] {
-        let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false };
+        let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false, seams: &[] };
         let (judge, mut ws) = (Judge::default(), Workspace::new());
         let opts = SolverOptions::default();
         let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);

@@ -71,7 +71,7 @@ fn gradient_with_an_offset_matches_finite_differences() {
     let u = binary_input(n, 2, 1.0, 9);
     let mut rng = Lcg(2);
     let y: Vec<f64> = oe::simulate_vec(&b, &f, 1, &u).iter().map(|v| v - 2.0 + 0.2 * rng.normal()).collect();
-    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: true };
+    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: true, seams: &[] };
     let theta = vec![0.45, 0.33, f[0] * 0.98, f[1] * 1.01, -1.9];
     for loss in [Loss::LeastSquares, Loss::Huber { gamma: 0.15 }] {
         let crit = |th: &[f64]| loss.criterion(&y, &prob.simulate_vec(th));
@@ -114,13 +114,14 @@ fn offset_is_recovered_and_the_fit_does_not_depend_on_it() {
             u: u.clone(),
             u_name: "u".into(),
             y_name: "y".into(),
+            seams: Vec::new(),
         };
         let levels = Levels::of(Offset::Estimate, &est);
         let mut rec = est.clone();
         levels.apply(&mut rec);
         assert_eq!(levels.u0, u0);
         let truth: Vec<f64> = b.iter().chain(&f).copied().chain([c]).collect();
-        let prob = Problem { u: &rec.u, y: &rec.y, nb: b.len(), nf: f.len(), delay: 1, offset: true };
+        let prob = Problem { u: &rec.u, y: &rec.y, nb: b.len(), nf: f.len(), delay: 1, offset: true, seams: &[] };
         let (opts, judge, mut ws) = (SolverOptions::default(), Judge::default(), Workspace::new());
         let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
         assert!(ls.termination.converged(), "{:?}", ls.termination);
@@ -146,11 +147,11 @@ fn initial_state_makes_a_short_tail_judge_the_model() {
     let y = oe::simulate_vec(&b, &f, 1, &u);
     let (ue, ye) = (&u[..1000], &y[..1000]);
     let (uv, yv) = (&u[1000..], &y[1000..]);
-    let prob = Problem { u: ue, y: ye, nb: 3, nf: 4, delay: 1, offset: false };
+    let prob = Problem { u: ue, y: ye, nb: 3, nf: 4, delay: 1, offset: false, seams: &[] };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let judged = |initial_state| {
-        let judge = Judge { validation: Some((uv, yv)), band: None, initial_state };
+        let judge = Judge { validation: Some((uv, yv)), validation_seams: &[], band: None, initial_state };
         estimate::fit_ls_from(&prob, &[b.clone(), f.clone()].concat(), &judge, &opts, &mut Workspace::new())
             .assessment
             .fit_val

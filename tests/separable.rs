@@ -38,7 +38,8 @@ fn noise_free_data_recovers_the_true_parameters_from_a_poor_start() {
             let u = binary_input(n, 3, 10.0, 7);
             let mut y = oe::simulate_vec(&b, &f, 1, &u);
             y.iter_mut().for_each(|v| *v += offset.unwrap_or(0.0));
-            let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: offset.is_some() };
+            let prob =
+                Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: offset.is_some(), seams: &[] };
             let truth = estimate::theta_of(&b, &f, offset);
             // F's poles pulled towards the origin, B halved, no offset: the inner problem
             // must find b and c, the outer one F.
@@ -75,7 +76,7 @@ fn noise_free_data_recovers_the_true_parameters_from_a_poor_start() {
 #[test]
 fn the_linear_parameters_are_at_their_inner_optimum() {
     let (u, y) = spiky(3000, 5.0);
-    let prob = Problem { u: &u, y: &y, nb: 3, nf: 2, delay: 1, offset: true };
+    let prob = Problem { u: &u, y: &y, nb: 3, nf: 2, delay: 1, offset: true, seams: &[] };
     let mut ws = Workspace::new();
     let start = vec![0.1, 0.0, 0.0, -1.0, 0.5, 0.0];
     for loss in [Loss::LeastSquares, Loss::Huber { gamma: 0.1 }] {
@@ -103,7 +104,7 @@ fn the_linear_parameters_are_at_their_inner_optimum() {
 #[test]
 fn the_criterion_falls_on_every_accepted_step_and_f_stays_stable() {
     let (u, y) = spiky(4000, 0.0);
-    let prob = Problem { u: &u, y: &y, nb: 4, nf: 4, delay: 1, offset: false };
+    let prob = Problem { u: &u, y: &y, nb: 4, nf: 4, delay: 1, offset: false, seams: &[] };
     let mut ws = Workspace::new();
     ws.record_trace = true;
     let judge = Judge::default();
@@ -123,7 +124,7 @@ fn the_criterion_falls_on_every_accepted_step_and_f_stays_stable() {
 #[test]
 fn separable_and_full_levenberg_marquardt_agree() {
     let (u, y) = spiky(5000, 2.0);
-    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: true };
+    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: true, seams: &[] };
     let judge = Judge::default();
     let mut ws = Workspace::new();
     let lm = SolverOptions::default();
@@ -191,7 +192,7 @@ fn whole_and_head() -> [SolverOptions; 2] {
 #[test]
 fn exploring_the_starts_on_the_head_reaches_the_whole_record_minima() {
     let (u, y) = spiky(40_000, 1.0);
-    let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true };
+    let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true, seams: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let [whole, head] = whole_and_head();
     let a = estimate::fit_ls(&prob, &judge, &whole, &mut ws);
@@ -215,7 +216,7 @@ fn exploring_the_starts_on_the_head_reaches_the_whole_record_minima() {
 #[test]
 fn walking_the_chains_on_the_head_reaches_the_whole_record_cells() {
     let (u, y) = spiky(40_000, 1.0);
-    let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true };
+    let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true, seams: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let [whole, head] = whole_and_head();
     let ls = estimate::fit_ls(&prob, &judge, &whole, &mut ws);

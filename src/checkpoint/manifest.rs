@@ -21,8 +21,17 @@ pub(super) fn job_identity(job: &Job) -> (Value, String) {
     let obj = job.as_object_mut().expect("a job is a JSON object");
     obj.remove("output");
     for field in ["data", "validation"] {
-        if let Some(Value::Object(spec)) = obj.get_mut(field) {
-            spec.remove("path");
+        match obj.get_mut(field) {
+            Some(Value::Object(spec)) => {
+                spec.remove("path");
+            }
+            // A list of records (experiments): each without its path.
+            Some(Value::Array(specs)) => {
+                for spec in specs.iter_mut().filter_map(Value::as_object_mut) {
+                    spec.remove("path");
+                }
+            }
+            _ => {}
         }
     }
     let sha = sha256_hex(&serde_json::to_vec(&job).expect("JSON serialises"));
@@ -60,7 +69,9 @@ impl Manifest {
     pub fn of_job(vj: &ValidJob) -> Result<Manifest> {
         let (job, job_sha256) = job_identity(&vj.job);
         let mut data = Vec::new();
-        let specs = std::iter::once(("data", &vj.job.data)).chain(vj.job.validation.iter().map(|v| ("validation", v)));
+        // One role per record: `data`, `validation` for one record each (as always), else
+        // `data[i]`, `validation[i]`.
+        let specs = vj.job.data.named("data").chain(vj.job.validation.iter().flat_map(|v| v.named("validation")));
         for (role, spec) in specs {
             let bytes = std::fs::read(&spec.path).map_err(|e| Error::input(&spec.path, format!("cannot read: {e}")))?;
             data.push(DataHash {
@@ -94,8 +105,10 @@ impl Manifest {
                 None => "the job differs".to_string(),
             });
         }
-        for role in ["data", "validation"] {
-            let name = if role == "data" { "estimation data" } else { "validation data" };
+        let mut roles: Vec<&str> = self.data.iter().chain(&now.data).map(|d| d.role.as_str()).collect();
+        roles.dedup();
+        for role in roles {
+            let name = if role.starts_with("data") { "estimation data" } else { "validation data" };
             match (self.data.iter().find(|d| d.role == role), now.data.iter().find(|d| d.role == role)) {
                 (Some(a), Some(b)) if a.sha256 != b.sha256 || a.bytes != b.bytes => {
                     return Some(format!(

@@ -170,9 +170,22 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
     let p = engine::prepare(&a.job)?;
     let j = &p.job;
     println!("job        {} ({})", j.job.name, j.file.display());
-    println!("data       {} ({} samples, Ts = {} s)", j.job.data.path.display(), p.inputs.est.u.len(), j.ts());
+    let more = |n: usize| if n > 1 { format!(" and {} more experiments", n - 1) } else { String::new() };
+    println!(
+        "data       {}{} ({} samples, Ts = {} s)",
+        j.job.data.first().path.display(),
+        more(j.job.data.specs.len()),
+        p.inputs.est.u.len(),
+        j.ts()
+    );
     if let (Some(v), Some(rec)) = (&j.job.validation, &p.inputs.val) {
-        println!("validation {} ({} samples, column '{}')", v.path.display(), rec.u.len(), rec.y_name);
+        println!(
+            "validation {}{} ({} samples, column '{}')",
+            v.first().path.display(),
+            more(v.specs.len()),
+            rec.u.len(),
+            rec.y_name
+        );
     }
     println!("grid       {}", describe_grid(&p));
     println!("cells      {} Huber cells + {} least-squares fits", j.n_cells(), j.n_pairs());

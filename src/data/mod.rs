@@ -50,6 +50,22 @@ pub struct Record {
     pub u_name: String,
     /// Name of the output column in the file.
     pub y_name: String,
+    /// Where the experiments after the first begin, when the record is several experiments
+    /// concatenated ([`Record::concat`]; METHOD.md 16): empty for one experiment. Simulations
+    /// restart from zero there and no lag reaches across.
+    pub seams: Vec<usize>,
+}
+
+/// The ranges `[0, s_1), [s_1, s_2), ..., [s_k, n)` of experiments separated by `seams`.
+pub fn experiment_ranges(n: usize, seams: &[usize]) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::with_capacity(seams.len() + 1);
+    let mut start = 0;
+    for &s in seams {
+        out.push(start..s);
+        start = s;
+    }
+    out.push(start..n);
+    out
 }
 
 impl Record {
@@ -65,7 +81,26 @@ impl Record {
                 return Err(input_error(&path, format!("sample {i} of {name} is {}, not a finite number", x[i])));
             }
         }
-        Ok(Record { path, u, y, u_name: "u".into(), y_name: "y".into() })
+        Ok(Record { path, u, y, u_name: "u".into(), y_name: "y".into(), seams: Vec::new() })
+    }
+
+    /// Several experiments as one record: the samples one after the other, with a seam where
+    /// each experiment after the first begins. The path and column names are the first's. One
+    /// record is returned as it is.
+    pub fn concat(mut records: Vec<Record>) -> Record {
+        assert!(!records.is_empty(), "no record to concatenate");
+        let mut all = records.remove(0);
+        for r in records {
+            all.seams.push(all.u.len());
+            all.u.extend_from_slice(&r.u);
+            all.y.extend_from_slice(&r.y);
+        }
+        all
+    }
+
+    /// The sample ranges of the experiments (one range for a single experiment).
+    pub fn experiments(&self) -> Vec<std::ops::Range<usize>> {
+        experiment_ranges(self.len(), &self.seams)
     }
 
     /// Number of samples N.
@@ -249,7 +284,7 @@ pub fn read_record_with(path: &Path, u: &ColumnRef, y: &ColumnRef, opts: &ReadOp
     }
     let (y, u) = (values.pop().expect("two columns"), values.pop().expect("two columns"));
     let (y_name, u_name) = (names.pop().expect("two columns"), names.pop().expect("two columns"));
-    Ok(Record { path: path.to_path_buf(), u, y, u_name, y_name })
+    Ok(Record { path: path.to_path_buf(), u, y, u_name, y_name, seams: Vec::new() })
 }
 
 /// Reads the named numeric columns of a file, all rows, default dialect, in the order of

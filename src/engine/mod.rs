@@ -73,8 +73,9 @@ pub fn prepare(path: &Path) -> Result<Prepared> {
     let inputs = job::load_inputs(&job)?;
     let spectral = match job.job.band_hz {
         Some([lo, hi]) => {
-            let s = spectral::estimate(&inputs.est.u, &inputs.est.y, job.ts(), job.job.spectrum)
-                .map_err(|e| Error::input(&job.job.data.path, e.to_string()))?;
+            let s =
+                spectral::estimate_within(&inputs.est.u, &inputs.est.y, &inputs.est.seams, job.ts(), job.job.spectrum)
+                    .map_err(|e| Error::input(&job.job.data.first().path, e.to_string()))?;
             let bins = s.band(lo, hi);
             if bins.is_empty() {
                 return Err(Error::input(
@@ -388,6 +389,7 @@ fn covariance_of(c: &CellRow, inputs: &Inputs) -> Option<Vec<f64>> {
         nf: c.key.nf as usize,
         delay: c.key.delay as usize,
         offset: inputs.levels.mode.estimated(),
+        seams: &inputs.est.seams,
     };
     let theta = estimate::theta_of(&c.fit.b, &c.fit.f, inputs.levels.estimated_c(c.fit.offset));
     let yhat = prob.simulate_vec(&theta);

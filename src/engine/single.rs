@@ -120,7 +120,8 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
         }
         None => None,
     };
-    let (est, val) = job::read_records(&data, validation.as_ref())?;
+    let validation = validation.map(job::Records::one);
+    let (est, val) = job::read_records(&job::Records::one(data), validation.as_ref())?;
     fit_records(req, est, val, val_path)
 }
 
@@ -142,7 +143,7 @@ fn fit_records(
         job::inputs_of_records(est, val, req.offset, (req.nb, req.nf, req.delay))?;
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
-            let s = spectral::estimate(&est.u, &est.y, ts, req.spectrum)?;
+            let s = spectral::estimate_within(&est.u, &est.y, &est.seams, ts, req.spectrum)?;
             let bins = s.band(lo, hi);
             Some((s, bins))
         }
@@ -150,11 +151,19 @@ fn fit_records(
     };
     let judge = Judge {
         validation: val.as_ref().map(|v| (&v.u[..], &v.y[..])),
+        validation_seams: val.as_ref().map_or(&[][..], |v| &v.seams[..]),
         band: spec.as_ref().map(|(s, bins)| (s, &bins[..])),
         initial_state: req.initial_state,
     };
-    let prob =
-        Problem { u: &est.u, y: &est.y, nb: req.nb, nf: req.nf, delay: req.delay, offset: req.offset.estimated() };
+    let prob = Problem {
+        u: &est.u,
+        y: &est.y,
+        nb: req.nb,
+        nf: req.nf,
+        delay: req.delay,
+        offset: req.offset.estimated(),
+        seams: &est.seams,
+    };
     let mut ws = Workspace::new();
     let t0 = Instant::now();
     let mut ls = estimate::fit_ls(&prob, &judge, &req.solver, &mut ws);

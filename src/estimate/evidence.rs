@@ -76,23 +76,46 @@ pub struct Scratch {
     rq: Vec<f64>,
     /// The input `uc` and `ruu` were computed from.
     input_of: Vec<f64>,
+    seams_of: Vec<usize>,
     uc: Vec<f64>,
     ruu: Vec<f64>,
 }
 
 impl Scratch {
     /// The centred input and its autocorrelation at lags 0..=m, computed when `u` changed.
-    fn input(&mut self, u: &[f64], m: usize) {
+    fn input(&mut self, u: &[f64], seams: &[usize], m: usize) {
         // Compared by value (one pass, far cheaper than the m + 1 lagged products): a
         // record's buffer may be freed and its address reused by another record.
-        if self.input_of == u && self.ruu.len() == m + 1 {
+        if self.input_of == u && self.seams_of == seams && self.ruu.len() == m + 1 {
             return;
         }
         centre_into(u, &mut self.uc);
         self.ruu.resize(m + 1, 0.0);
-        kernels::lagged_dots(&self.uc, &self.uc, &mut self.ruu);
+        lagged_dots_within(&self.uc, &self.uc, seams, &mut self.ruu);
         self.input_of.clear();
         self.input_of.extend_from_slice(u);
+        self.seams_of.clear();
+        self.seams_of.extend_from_slice(seams);
+    }
+}
+
+/// `out[L] = sum_s a[s] b[s + L]` over the pairs within one experiment (`seams` as in
+/// [`Problem::seams`]; empty: [`kernels::lagged_dots`] itself).
+fn lagged_dots_within(a: &[f64], b: &[f64], seams: &[usize], out: &mut [f64]) {
+    if seams.is_empty() {
+        kernels::lagged_dots(a, b, out);
+        return;
+    }
+    let mut part = [0.0; MAX_LAG + 1];
+    let part = &mut part[..out.len()];
+    out.fill(0.0);
+    for e in crate::data::experiment_ranges(a.len(), seams) {
+        let m = out.len().min(e.len());
+        part[..m].fill(0.0);
+        kernels::lagged_dots(&a[e.clone()], &b[e], &mut part[..m]);
+        for (o, p) in out.iter_mut().zip(&part[..m]) {
+            *o += p;
+        }
     }
 }
 
@@ -134,7 +157,7 @@ pub fn evidence(
         .fold(0.0, |m: f64, v| if v.is_nan() { f64::INFINITY } else { m.max(v) });
     centre_into(&s.r, &mut s.e);
     let m = MAX_LAG.min(n.saturating_sub(2));
-    s.input(prob.u, m);
+    s.input(prob.u, prob.seams, m);
     Evidence {
         b_std: b.to_vec(),
         f_std: f.to_vec(),
@@ -142,8 +165,8 @@ pub fn evidence(
         // An infinite ratio (an undetermined parameter) is a finding; a NaN or a non-finite
         // p-value is not a number to report.
         max_rel_std: Some(max_rel_std).filter(|v| !v.is_nan()),
-        resid_white_p: Some(whiteness_p(&s.e)).filter(|v| v.is_finite()),
-        resid_indep_p: Some(independence_p(&s.e, &s.uc, &s.ruu)).filter(|v| v.is_finite()),
+        resid_white_p: Some(whiteness_p(&s.e, prob.seams)).filter(|v| v.is_finite()),
+        resid_indep_p: Some(independence_p(&s.e, prob.seams, &s.uc, &s.ruu)).filter(|v| v.is_finite()),
         cancellations,
     }
 }
@@ -174,7 +197,7 @@ pub fn covariance(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64]) -> Op
     let (b, f, _) = prob.split(theta);
     let n = prob.n();
     let (mut xu, mut yh, mut xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    oe::simulate_filtered(b, f, prob.delay, prob.u, &mut xu, &mut yh, &mut xy);
+    prob.simulate_filtered(b, f, &mut xu, &mut yh, &mut xy);
     let d = prob.dim();
     let (mut h, mut g) = (vec![0.0; d * d], vec![0.0; d]);
     let slope = slope(prob, loss, yhat);
@@ -203,10 +226,7 @@ fn covariance_of(
     }
     let kappa = r.iter().map(|v| v * v).sum::<f64>() / n as f64 / (slope * slope);
     let lay = prob.layout();
-    ne.build(&lay, xu, xy, None, r, h, g);
-    if prob.offset {
-        ne.add_offset(&lay, xu, xy, None, r, h, g);
-    }
+    ne.build_all(&lay, prob.offset, prob.seams, xu, xy, None, r, h, g);
     // The inverse from a Cholesky factor of the diagonally scaled matrix (OE Gram matrices
     // span many decades).
     let scale: Vec<f64> = (0..d).map(|i| h[i * d + i].sqrt()).collect();
@@ -273,6 +293,14 @@ fn qr_inverse(prob: &Problem, xu: &[f64], xy: &[f64], scale: &[f64], rq: &mut Ve
             let factor = 1.0 / (s * root_n);
             if j < d0 {
                 lay.column_into(xu, xy, j, start, factor, out);
+                // No lag reaches back across a seam: the experiment's first `lag` rows of the
+                // column are zero, as the record's first are.
+                let lag = lay.lag(j);
+                for &seam in prob.seams.iter().filter(|&&s| s + lag > start && s < start + m) {
+                    for t in seam.max(start)..(seam + lag).min(start + m) {
+                        out[t - start] = 0.0;
+                    }
+                }
             } else {
                 out.fill(factor);
             }
@@ -346,8 +374,9 @@ pub fn gain_std(b: &[f64], f: &[f64], delay: usize, cov: &[f64], w: f64) -> (f64
     (mag, var.max(0.0).sqrt())
 }
 
-/// Ljung-Box p-value of the centred residuals `e` over lags 1..[`MAX_LAG`].
-fn whiteness_p(e: &[f64]) -> f64 {
+/// Ljung-Box p-value of the centred residuals `e` over lags 1..[`MAX_LAG`] (the lagged
+/// products within each experiment, `seams`).
+fn whiteness_p(e: &[f64], seams: &[usize]) -> f64 {
     let n = e.len();
     let m = MAX_LAG.min(n.saturating_sub(2));
     if m == 0 {
@@ -355,7 +384,7 @@ fn whiteness_p(e: &[f64]) -> f64 {
     }
     let mut acf = [0.0; MAX_LAG + 1];
     let acf = &mut acf[..m + 1];
-    kernels::lagged_dots(e, e, acf);
+    lagged_dots_within(e, e, seams, acf);
     if acf[0] <= 0.0 {
         return f64::NAN;
     }
@@ -366,7 +395,7 @@ fn whiteness_p(e: &[f64]) -> f64 {
 
 /// p-value of the independence of the centred residuals `e` from the input at lags
 /// 0..[`MAX_LAG`]; `u` is the centred input and `ruu` its autocorrelation at lags 0..=m.
-fn independence_p(e: &[f64], u: &[f64], ruu: &[f64]) -> f64 {
+fn independence_p(e: &[f64], seams: &[usize], u: &[f64], ruu: &[f64]) -> f64 {
     let n = e.len();
     let m = ruu.len() - 1;
     let mut see = [0.0; 1];
@@ -374,7 +403,7 @@ fn independence_p(e: &[f64], u: &[f64], ruu: &[f64]) -> f64 {
     let reu = &mut reu[..m + 1];
     kernels::lagged_dots(e, e, &mut see);
     // r_k = (1/N) sum_t e_t u_{t-k} = (1/N) sum_s u_s e_{s+k}.
-    kernels::lagged_dots(u, e, reu);
+    lagged_dots_within(u, e, seams, reu);
     let nf = n as f64;
     let sigma2 = see[0] / nf;
     if !(sigma2 > 0.0 && ruu[0] > 0.0) {
@@ -474,12 +503,12 @@ mod tests {
         };
         let e: Vec<f64> = (0..4000).map(|_| normal()).collect();
         let u: Vec<f64> = (0..4000).map(|_| normal()).collect();
-        let white = |x: &[f64]| whiteness_p(&centred(x));
+        let white = |x: &[f64]| whiteness_p(&centred(x), &[]);
         let indep = |x: &[f64], u: &[f64]| {
             let (x, u) = (centred(x), centred(u));
             let mut ruu = vec![0.0; MAX_LAG + 1];
             kernels::lagged_dots(&u, &u, &mut ruu);
-            independence_p(&x, &u, &ruu)
+            independence_p(&x, &[], &u, &ruu)
         };
         assert!(white(&e) > 0.001, "{}", white(&e));
         assert!(indep(&e, &u) > 0.001, "{}", indep(&e, &u));

@@ -17,6 +17,9 @@ use crate::spectral::SpectralEstimate;
 pub struct Judge<'a> {
     /// Validation record (u, y): used only to judge, never to fit.
     pub validation: Option<(&'a [f64], &'a [f64])>,
+    /// The validation record's seams when it is several experiments
+    /// ([`crate::data::Record::seams`]; empty: one).
+    pub validation_seams: &'a [usize],
     /// Spectral estimate of the estimation record and the bins of the fit band.
     pub band: Option<(&'a SpectralEstimate, &'a [usize])>,
     /// The initial state `fit` and `fit_val` are computed with.
@@ -31,10 +34,19 @@ impl Judge<'_> {
         let mut yhat = yhat0;
         if self.initial_state == InitialState::Estimate {
             let (b, f, _) = prob.split(theta);
-            initial_state::add_free_response(f, b.len(), prob.delay, y, &mut yhat);
+            // One initial state per experiment.
+            for e in prob.experiments() {
+                initial_state::add_free_response(f, b.len(), prob.delay, &y[e.clone()], &mut yhat[e]);
+            }
         }
         yhat
     }
+}
+
+/// The fit % of each experiment of a record of several (`prob.seams` not empty; None for one
+/// experiment, whose fit is the pooled one).
+fn fit_per_experiment(prob: &Problem, y: &[f64], yhat: &[f64]) -> Option<Vec<f64>> {
+    (!prob.seams.is_empty()).then(|| prob.experiments().map(|e| fit_percent(&y[e.clone()], &yhat[e])).collect())
 }
 
 /// Fit percentage `100 (1 - ||y - yhat|| / ||y - mean(y)||)`.
@@ -83,6 +95,13 @@ pub struct Assessment {
     pub fit_val: Option<f64>,
     /// Fit % of the frequency response against the spectral estimate in the band.
     pub fit_band: Option<f64>,
+    /// Fit % of each estimation experiment when the record is several (METHOD.md 16); `fit`
+    /// is then the pooled one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit_exp: Option<Vec<f64>>,
+    /// Fit % of each validation experiment when the validation record is several.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit_val_exp: Option<Vec<f64>>,
     pub max_pole_radius: f64,
     /// Parameter standard deviations and residual tests (METHOD.md 10).
     #[serde(flatten)]
@@ -94,16 +113,23 @@ pub struct Assessment {
 fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: &Judge) -> Assessment {
     let yhat = &ws.yhat[..];
     let (b, f, _) = prob.split(theta);
+    let mut fit_val_exp = None;
     let fit_val = judge.validation.map(|(u, y)| {
-        let val = Problem { u, y, ..*prob };
-        fit_percent(y, &judge.judged_output(&val, theta, y, val.simulate_vec(theta)))
+        let val = Problem { u, y, seams: judge.validation_seams, ..*prob };
+        let judged = judge.judged_output(&val, theta, y, val.simulate_vec(theta));
+        fit_val_exp = fit_per_experiment(&val, y, &judged);
+        fit_percent(y, &judged)
     });
-    let fit = fit_percent(prob.y, &judge.judged_output(prob, theta, prob.y, yhat.to_vec()));
+    let judged = judge.judged_output(prob, theta, prob.y, yhat.to_vec());
+    let fit = fit_percent(prob.y, &judged);
+    let fit_exp = fit_per_experiment(prob, prob.y, &judged);
     let fit_band = judge.band.and_then(|(est, bins)| crate::spectral::band_fit(est, bins, b, f, prob.delay));
     Assessment {
         fit,
         fit_val: fit_val.filter(|v| v.is_finite()),
         fit_band: fit_band.filter(|v| v.is_finite()),
+        fit_exp,
+        fit_val_exp,
         max_pole_radius: oe::max_pole_radius(f),
         evidence: evidence::evidence(prob, theta, loss, &ws.yhat, &ws.xu, &ws.xy, &mut ws.evidence),
     }

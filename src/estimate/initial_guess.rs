@@ -19,12 +19,14 @@ use faer::prelude::*;
 /// (the right-hand side rides along as one more column).
 fn regressor(prob: &Problem, s2: &[f64], t: usize, c: usize) -> f64 {
     let (nb, nf, delay) = (prob.nb, prob.nf, prob.delay);
+    // No lag reaches back across the start of the experiment t belongs to.
+    let t0 = prob.experiment_start(t);
     if c < nb {
         let lag = delay + c;
-        if t >= lag { prob.u[t - lag] } else { 0.0 }
+        if t >= t0 + lag { prob.u[t - lag] } else { 0.0 }
     } else if c < nb + nf {
         let lag = c - nb + 1;
-        if t >= lag { -s2[t - lag] } else { 0.0 }
+        if t >= t0 + lag { -s2[t - lag] } else { 0.0 }
     } else if c < prob.dim() {
         1.0
     } else {

@@ -69,7 +69,7 @@ pub fn fit_ls_nested(
 /// explored (METHOD.md 5.2 step 5, 5.5); None when the whole record is explored.
 pub fn exploration_head<'a>(prob: &Problem<'a>, opts: &SolverOptions) -> Option<Problem<'a>> {
     let rows = opts.explore_rows;
-    (rows > 0 && prob.n() > rows).then(|| Problem { u: &prob.u[..rows], y: &prob.y[..rows], ..*prob })
+    (rows > 0 && prob.n() > rows).then(|| prob.head(rows))
 }
 
 /// The lowest usable solution (ties: the first) and the others that are usable and distinct

@@ -37,6 +37,11 @@ impl Layout {
         self.nb + self.nf
     }
 
+    /// The lag of column `c` (`d + i` for b_i, `j` for f_j).
+    pub fn lag(&self, c: usize) -> usize {
+        self.col(c).2
+    }
+
     #[inline(always)]
     fn col(&self, c: usize) -> (Seq, f64, usize) {
         if c < self.nb { (Seq::U, 1.0, self.delay + c) } else { (Seq::Y, -1.0, c - self.nb + 1) }
@@ -118,6 +123,9 @@ pub struct NormalEquations {
     /// The last `build` summed the weighted rows directly (`rows`, `alpha` = the rows with
     /// w_t > 0 and their weights) rather than as a correction (`alpha = w_t - 1`).
     direct: bool,
+    /// One experiment's `h` and `g` in [`NormalEquations::build_all`].
+    part_h: Vec<f64>,
+    part_g: Vec<f64>,
 }
 
 /// `sum x` in eight interleaved partial sums, which vectorise (one running sum is a chain of
@@ -135,6 +143,61 @@ fn sum(x: &[f64]) -> f64 {
 }
 
 impl NormalEquations {
+    /// [`Self::build`], then [`Self::add_offset`] when `offset`, over a record of several
+    /// experiments separated by `seams` (empty: one experiment, exactly `build` and
+    /// `add_offset`). The Jacobian rows of an experiment lag only into that experiment (the
+    /// signals restart at its start), so the sums are the experiments' own normal equations
+    /// weighted by their lengths: `h = sum_k (N_k/N) h_k`, the same for g (METHOD.md 16).
+    #[allow(clippy::too_many_arguments)]
+    pub fn build_all(
+        &mut self,
+        lay: &Layout,
+        offset: bool,
+        seams: &[usize],
+        xu: &[f64],
+        xy: &[f64],
+        w: Option<&[f64]>,
+        r: &[f64],
+        h: &mut [f64],
+        g: &mut [f64],
+    ) {
+        if seams.is_empty() {
+            self.build(lay, xu, xy, w, r, h, g);
+            if offset {
+                self.add_offset(lay, xu, xy, w, r, h, g);
+            }
+            return;
+        }
+        let n = xu.len();
+        let d = lay.dim() + usize::from(offset);
+        let mut part_h = std::mem::take(&mut self.part_h);
+        let mut part_g = std::mem::take(&mut self.part_g);
+        part_h.resize(d * d, 0.0);
+        part_g.resize(d, 0.0);
+        h[..d * d].fill(0.0);
+        g[..d].fill(0.0);
+        for k in 0..=seams.len() {
+            let start = if k == 0 { 0 } else { seams[k - 1] };
+            let end = seams.get(k).copied().unwrap_or(n);
+            let e = start..end;
+            let wk = w.map(|w| &w[e.clone()]);
+            let (xu, xy, r) = (&xu[e.clone()], &xy[e.clone()], &r[e.clone()]);
+            self.build(lay, xu, xy, wk, r, &mut part_h, &mut part_g);
+            if offset {
+                self.add_offset(lay, xu, xy, wk, r, &mut part_h, &mut part_g);
+            }
+            let share = (end - start) as f64 / n as f64;
+            for (a, p) in h[..d * d].iter_mut().zip(&part_h) {
+                *a += share * p;
+            }
+            for (a, p) in g[..d].iter_mut().zip(&part_g) {
+                *a += share * p;
+            }
+        }
+        self.part_h = part_h;
+        self.part_g = part_g;
+    }
+
     /// Build `h = (1/N) J^T W J` (d x d, row-major, full) and `g = (1/N) J^T r`.
     ///
     /// `w` gives the row weights (None = all ones); `r` is the weighted residual psi_g(e).

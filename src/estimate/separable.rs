@@ -35,7 +35,6 @@ use super::huber::Loss;
 use super::linalg::{cholesky, cholesky_solve};
 use super::normal::{Layout, NormalEquations};
 use super::problem::Problem;
-use crate::oe;
 
 /// Newton steps of a Huber inner problem at most (each warm-started from the linearised beta
 /// of the outer step). The inner problem changes only its L2 set between steps, which settles
@@ -82,7 +81,7 @@ fn predict(prob: &Problem, beta: impl Fn(usize) -> f64, b_scratch: &mut [f64], x
     for (i, v) in b_scratch.iter_mut().enumerate() {
         *v = beta(i);
     }
-    oe::delayed_fir(b_scratch, prob.delay, xu, out);
+    prob.delayed_fir(b_scratch, xu, out);
     if prob.offset {
         let c = beta(prob.nb);
         if c != 0.0 {
@@ -114,7 +113,7 @@ pub fn project(
     inner.delta.resize(nl, 0.0);
     inner.b.resize(nb, 0.0);
     xu.copy_from_slice(prob.u);
-    oe::inv_f_in_place(prob.split(theta).1, xu);
+    prob.inv_f(prob.split(theta).1, xu);
     let th: &[f64] = theta;
     predict(prob, |i| beta_get(prob, th, i), &mut inner.b, xu, yhat);
     let mut crit = loss.criterion(prob.y, yhat);
@@ -152,10 +151,7 @@ pub fn project(
                 }
             };
             // xu stands in for the unused xy of an nF = 0 layout.
-            inner.ne.build(&lay, xu, xu, weights, r, &mut inner.h, &mut inner.g);
-            if prob.offset {
-                inner.ne.add_offset(&lay, xu, xu, weights, r, &mut inner.h, &mut inner.g);
-            }
+            inner.ne.build_all(&lay, prob.offset, prob.seams, xu, xu, weights, r, &mut inner.h, &mut inner.g);
             solved = solve_ridged(&inner.h, &mut inner.a, &inner.g, &mut inner.delta[..nl], nl);
             if solved || weights.is_none() {
                 break;

@@ -84,7 +84,7 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
         c
     } else {
         let (b0, f0, c0) = prob.split(&ws.theta);
-        oe::simulate_filtered(b0, f0, prob.delay, prob.u, &mut ws.xu, &mut ws.yhat, &mut ws.xy);
+        prob.simulate_filtered(b0, f0, &mut ws.xu, &mut ws.yhat, &mut ws.xy);
         add_offset(&mut ws.yhat, c0);
         loss.criterion(prob.y, &ws.yhat)
     };
@@ -139,10 +139,7 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
             }
         }
         let w = if use_weights { Some(&ws.w[..]) } else { None };
-        ws.ne.build(&lay, &ws.xu, &ws.xy, w, &ws.r, &mut ws.h, &mut ws.g);
-        if prob.offset {
-            ws.ne.add_offset(&lay, &ws.xu, &ws.xy, w, &ws.r, &mut ws.h, &mut ws.g);
-        }
+        ws.ne.build_all(&lay, prob.offset, prob.seams, &ws.xu, &ws.xy, w, &ws.r, &mut ws.h, &mut ws.g);
         if ws.h.iter().any(|v| !v.is_finite()) || ws.g.iter().any(|v| !v.is_finite()) {
             return finish(ws, crit, it, Termination::NonFinite, reflections, lambda);
         }
@@ -213,15 +210,7 @@ pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions
                 )
             } else {
                 let (tb, tf, tc) = prob.split(&ws.trial);
-                oe::simulate_filtered(
-                    tb,
-                    tf,
-                    prob.delay,
-                    prob.u,
-                    &mut ws.trial_xu,
-                    &mut ws.trial_yhat,
-                    &mut ws.trial_xy,
-                );
+                prob.simulate_filtered(tb, tf, &mut ws.trial_xu, &mut ws.trial_yhat, &mut ws.trial_xy);
                 add_offset(&mut ws.trial_yhat, tc);
                 loss.criterion(prob.y, &ws.trial_yhat)
             };

@@ -2,7 +2,6 @@
 
 use super::normal::NormalEquations;
 use super::problem::{Problem, output_filtered};
-use crate::oe;
 
 /// Per-worker buffers, reused across fits of any size.
 ///
@@ -86,7 +85,7 @@ impl Workspace {
         }
         prob.simulate(theta, &mut self.yhat);
         self.xu.copy_from_slice(prob.u);
-        oe::inv_f_in_place(prob.split(theta).1, &mut self.xu);
+        prob.inv_f(prob.split(theta).1, &mut self.xu);
         output_filtered(prob, theta, &self.yhat, &mut self.xy);
     }
 }

@@ -1,7 +1,7 @@
 //! The records a job names, read beside the checked job: the one loader of the estimation and
 //! validation records, for a run, a merge, the report and `oesweep fit`.
 
-use super::{DataSpec, ValidJob};
+use super::{Records, ValidJob};
 use crate::data::{self, Levels, Offset, Record};
 use crate::error::Result;
 
@@ -25,13 +25,32 @@ pub fn load_inputs(vj: &ValidJob) -> Result<Inputs> {
 /// [`resolve_validation`]), check both against the largest model `(nb, nf, delay)`, and take
 /// out the levels of `offset` ([`Levels::of`], computed here only).
 pub fn read_inputs(
-    data: &DataSpec,
-    validation: Option<&DataSpec>,
+    data: &Records,
+    validation: Option<&Records>,
     offset: Offset,
     (nb_max, nf_max, delay_max): (usize, usize, usize),
 ) -> Result<Inputs> {
-    let (est, val) = read_records(data, validation)?;
+    // Each experiment long enough on its own: the simulation restarts in every one.
+    let concat = |specs: &Records| -> Result<Record> {
+        let records = read_experiments(specs)?;
+        if records.len() > 1 {
+            for rec in &records {
+                let need = data::min_samples(nb_max, nf_max, delay_max);
+                if rec.len() < need {
+                    data::check_for_model(rec, nb_max, nf_max, delay_max)?;
+                }
+            }
+        }
+        Ok(Record::concat(records))
+    };
+    let est = concat(data)?;
+    let val = validation.map(concat).transpose()?;
     inputs_of_records(est, val, offset, (nb_max, nf_max, delay_max))
+}
+
+/// The records of `data` or `validation` as read, one per experiment.
+fn read_experiments(specs: &Records) -> Result<Vec<Record>> {
+    specs.specs.iter().map(|s| data::read_record_with(&s.path, &s.u_col(), &s.y_col(), &s.read_options())).collect()
 }
 
 /// [`read_inputs`] of records already in memory: checked against the largest model, levels
@@ -62,7 +81,9 @@ const INTEGRATING_SLOPE: f64 = -0.7;
 
 /// A warning when the estimation record's spectral estimate rises like 1/f towards 0 Hz.
 fn integrating_warning(est: &Record) -> Option<String> {
-    let spectrum = crate::spectral::estimate(&est.u, &est.y, 1.0, crate::spectral::SpectrumMethod::Welch).ok()?;
+    let spectrum =
+        crate::spectral::estimate_within(&est.u, &est.y, &est.seams, 1.0, crate::spectral::SpectrumMethod::Welch)
+            .ok()?;
     let slope = crate::spectral::low_frequency_slope(&spectrum)?;
     (slope < INTEGRATING_SLOPE).then(|| {
         format!(
@@ -76,11 +97,9 @@ fn integrating_warning(est: &Record) -> Option<String> {
 
 /// The records of a checked job, as read from the files (levels not taken out): for the
 /// report's plots, which show the data in its own units.
-pub fn read_records(data: &DataSpec, validation: Option<&DataSpec>) -> Result<(Record, Option<Record>)> {
-    let est = data::read_record_with(&data.path, &data.u_col(), &data.y_col(), &data.read_options())?;
-    let val = match validation {
-        Some(v) => Some(data::read_record_with(&v.path, &v.u_col(), &v.y_col(), &v.read_options())?),
-        None => None,
-    };
+/// A list of records is one record of several experiments ([`Record::concat`]).
+pub fn read_records(data: &Records, validation: Option<&Records>) -> Result<(Record, Option<Record>)> {
+    let est = Record::concat(read_experiments(data)?);
+    let val = validation.map(|v| read_experiments(v).map(Record::concat)).transpose()?;
     Ok((est, val))
 }

@@ -83,6 +83,82 @@ impl DataSpec {
     }
 }
 
+/// The records of `data` or `validation`: one object (the usual job) or a list of them, one per
+/// experiment (METHOD.md 16). Written back in the form it was read, so the job.json of a
+/// one-object job is what it always was.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Records {
+    /// At least one.
+    pub specs: Vec<DataSpec>,
+    /// Given as a list (even of one record).
+    pub list: bool,
+}
+
+impl Records {
+    /// One record as an object.
+    pub fn one(spec: DataSpec) -> Records {
+        Records { specs: vec![spec], list: false }
+    }
+
+    /// The first record: the one whose settings the others default to.
+    pub fn first(&self) -> &DataSpec {
+        &self.specs[0]
+    }
+
+    pub fn first_mut(&mut self) -> &mut DataSpec {
+        &mut self.specs[0]
+    }
+
+    /// The records with their field names in messages: `data` for an object, `data[i]` in a
+    /// list.
+    pub fn named<'a>(&'a self, field: &'a str) -> impl Iterator<Item = (String, &'a DataSpec)> + 'a {
+        let list = self.list;
+        self.specs
+            .iter()
+            .enumerate()
+            .map(move |(i, s)| (if list { format!("{field}[{i}]") } else { field.to_string() }, s))
+    }
+}
+
+impl Serialize for Records {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        if self.list { self.specs.serialize(s) } else { self.specs[0].serialize(s) }
+    }
+}
+
+/// `data` or `validation` as an object or a list of objects, with the index of a bad record in
+/// the message (`data[1]: unknown field ...`).
+fn records_of(field: &str, v: serde_json::Value) -> std::result::Result<Records, String> {
+    match v {
+        serde_json::Value::Array(items) => {
+            let specs = items
+                .into_iter()
+                .enumerate()
+                .map(|(i, item)| DataSpec::deserialize(item).map_err(|e| format!("{field}[{i}]: {e}")))
+                .collect::<std::result::Result<Vec<_>, _>>()?;
+            if specs.is_empty() {
+                return Err(format!("{field}: an empty list; give one record {{ \"path\": ... }} or a list of them"));
+            }
+            Ok(Records { specs, list: true })
+        }
+        v @ serde_json::Value::Object(_) => {
+            DataSpec::deserialize(v).map(Records::one).map_err(|e| format!("{field}: {e}"))
+        }
+        other => Err(format!("{field}: expected a record {{ \"path\": ... }} or a list of them, got {other}")),
+    }
+}
+
+fn data_records<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Records, D::Error> {
+    records_of("data", serde_json::Value::deserialize(d)?).map_err(serde::de::Error::custom)
+}
+
+fn validation_records<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Option<Records>, D::Error> {
+    match serde_json::Value::deserialize(d)? {
+        serde_json::Value::Null => Ok(None),
+        v => records_of("validation", v).map(Some).map_err(serde::de::Error::custom),
+    }
+}
+
 /// k values: an explicit list or a generated range.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(untagged)]
@@ -181,9 +257,12 @@ const MIN_EXPLORE_ROWS: usize = 1000;
 #[serde(deny_unknown_fields)]
 pub struct Job {
     pub name: String,
-    pub data: DataSpec,
-    #[serde(default)]
-    pub validation: Option<DataSpec>,
+    /// The estimation record, or a list of records (experiments).
+    #[serde(deserialize_with = "data_records")]
+    pub data: Records,
+    /// The validation record, or a list of records.
+    #[serde(default, deserialize_with = "validation_records")]
+    pub validation: Option<Records>,
     /// One input delay for the whole grid (shorthand of `grid.delay` = [d, d]).
     #[serde(default)]
     pub delay: Option<usize>,
@@ -270,7 +349,7 @@ impl ValidJob {
         &self.job.output
     }
     pub fn ts(&self) -> f64 {
-        self.job.data.ts.expect("validated")
+        self.job.data.first().ts.expect("validated")
     }
 }
 
@@ -339,11 +418,10 @@ pub fn read_as_run(path: &Path) -> Result<(ValidJob, Option<String>)> {
     let mut job: Job = serde_json::from_value(v).map_err(|e| bad(e.to_string()))?;
     let folder = path.parent().unwrap_or(Path::new("."));
     let resolve = |p: &Path| if p.is_absolute() { p.to_path_buf() } else { folder.join(p) };
-    job.data.path = resolve(&job.data.path);
-    if let Some(v) = job.validation.as_mut() {
-        v.path = resolve(&v.path);
+    for spec in job.data.specs.iter_mut().chain(job.validation.iter_mut().flat_map(|v| v.specs.iter_mut())) {
+        spec.path = resolve(&spec.path);
     }
-    if job.data.ts.is_none_or(|ts| check_sampling_period(ts).is_err()) {
+    if job.data.first().ts.is_none_or(|ts| check_sampling_period(ts).is_err()) {
         return Err(Error::input(path, "field 'data.ts': missing or not a positive number"));
     }
     Ok((ValidJob::of_normalised(path, job), version))
@@ -414,7 +492,7 @@ mod tests {
         assert_eq!(vj.job.offset, Offset::None);
         assert_eq!(vj.job.initial_state, InitialState::Zero);
         assert_eq!(vj.job.spectrum, crate::spectral::SpectrumMethod::Welch);
-        assert_eq!(vj.job.data.path, dir.path().join("d.csv"));
+        assert_eq!(vj.job.data.first().path, dir.path().join("d.csv"));
         assert_eq!(vj.ks, vec![0.5, 1.0]);
         assert_eq!(vj.largest(), (2, 1, 1));
     }

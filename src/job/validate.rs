@@ -66,8 +66,8 @@ fn resolve(base: &Path, p: &Path) -> PathBuf {
 /// [`data::validation_column`]) and sampling period, filled in so that the checked job is
 /// complete. Reads the header of the validation file when its column is not given.
 pub(super) fn resolve_validation(mut job: Job) -> Result<Job> {
-    let (data_y, ts) = (job.data.y_col(), job.data.ts);
-    if let Some(v) = job.validation.as_mut() {
+    let (data_y, ts) = (job.data.first().y_col(), job.data.first().ts);
+    for v in job.validation.iter_mut().flat_map(|v| v.specs.iter_mut()) {
         v.y = Some(data::validation_column(&v.path, v.y.as_ref(), &data_y, &v.read_options())?);
         v.ts = v.ts.or(ts);
     }
@@ -85,45 +85,82 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
     if job.name.trim().is_empty() {
         return Err(bad("name", "must not be empty".into()));
     }
-    if job.data.path.as_os_str().is_empty() {
-        return Err(bad("data.path", "missing: the data file is required".into()));
+    // The first record as a job of one record has it; the others of a list default to the
+    // first's columns, layout and sampling period (every experiment measures the same signals).
+    let names: Vec<String> = job.data.named("data").map(|(n, _)| n).collect();
+    for (i, name) in names.iter().enumerate() {
+        let first = (i > 0).then(|| job.data.first().clone());
+        let spec = &mut job.data.specs[i];
+        if spec.path.as_os_str().is_empty() {
+            return Err(bad(&format!("{name}.path"), "missing: the data file is required".into()));
+        }
+        spec.path = resolve(&base, &spec.path);
+        match &first {
+            None => {
+                spec.u.get_or_insert_with(|| ColumnRef::name("u"));
+                spec.y.get_or_insert_with(|| ColumnRef::name("y"));
+            }
+            Some(first) => {
+                spec.u.get_or_insert_with(|| first.u_col());
+                spec.y.get_or_insert_with(|| first.y_col());
+                if spec.delimiter.is_none() && spec.path == first.path {
+                    spec.delimiter = first.delimiter.clone();
+                }
+                if spec.header.is_none() {
+                    spec.header = first.header;
+                }
+            }
+        }
+        check_data_spec(spec, name).map_err(|(f, m)| bad(&f, m))?;
+        match (spec.ts, &first) {
+            (Some(ts), None) => check_sampling_period(ts).map_err(|m| bad(&format!("{name}.ts"), m))?,
+            (None, None) => {
+                return Err(bad(&format!("{name}.ts"), "missing: the sampling period in seconds is required".into()));
+            }
+            (Some(ts), Some(first)) => {
+                let ets = first.ts.unwrap();
+                check_sampling_period(ts).map_err(|m| bad(&format!("{name}.ts"), m))?;
+                if (ts - ets).abs() > 1e-9 * ets {
+                    return Err(bad(
+                        &format!("{name}.ts"),
+                        format!("sampling period {ts} s differs from the first record's {ets} s"),
+                    ));
+                }
+            }
+            (None, Some(first)) => spec.ts = first.ts,
+        }
     }
-    job.data.path = resolve(&base, &job.data.path);
-    job.data.u.get_or_insert_with(|| ColumnRef::name("u"));
-    job.data.y.get_or_insert_with(|| ColumnRef::name("y"));
-    check_data_spec(&job.data, "data").map_err(|(f, m)| bad(&f, m))?;
-    match job.data.ts {
-        Some(ts) => check_sampling_period(ts).map_err(|m| bad("data.ts", m))?,
-        None => return Err(bad("data.ts", "missing: the sampling period in seconds is required".into())),
-    }
-    if let Some(v) = job.validation.as_mut() {
+    let data0 = job.data.first().clone();
+    let vnames: Vec<String> = job.validation.iter().flat_map(|v| v.named("validation").map(|(n, _)| n)).collect();
+    for (v, vname) in job.validation.iter_mut().flat_map(|v| v.specs.iter_mut()).zip(&vnames) {
+        let vname = vname.as_str();
         // The usual split of one experiment: same file and layout, other rows; or the same
         // rows, other columns (`uVal`, `yVal` beside `uEst`, `yEst`).
         if v.path.as_os_str().is_empty() {
             if v.rows.is_none() && v.u.is_none() && v.y.is_none() {
                 return Err(bad(
-                    "validation",
+                    vname,
                     "give its 'path', or the 'rows' or columns ('u', 'y') it takes from the estimation file (as \
                      it is, it would be the estimation record)"
                         .into(),
                 ));
             }
-            v.path = job.data.path.clone();
+            v.path = data0.path.clone();
         } else {
             v.path = resolve(&base, &v.path);
         }
-        v.u.get_or_insert_with(|| job.data.u_col());
-        if v.delimiter.is_none() && v.path == job.data.path {
-            v.delimiter = job.data.delimiter.clone();
+        v.u.get_or_insert_with(|| data0.u_col());
+        if v.delimiter.is_none() && v.path == data0.path {
+            v.delimiter = data0.delimiter.clone();
         }
-        v.header.get_or_insert(job.data.header.unwrap_or_default());
-        check_data_spec(v, "validation").map_err(|(f, m)| bad(&f, m))?;
+        v.header.get_or_insert(data0.header.unwrap_or_default());
+        check_data_spec(v, vname).map_err(|(f, m)| bad(&f, m))?;
         if let Some(ts) = v.ts {
-            let ets = job.data.ts.unwrap();
-            check_sampling_period(ts).map_err(|m| bad("validation.ts", m))?;
+            let ets = data0.ts.unwrap();
+            check_sampling_period(ts).map_err(|m| bad(&format!("{vname}.ts"), m))?;
             if (ts - ets).abs() > 1e-9 * ets {
                 return Err(bad(
-                    "validation.ts",
+                    &format!("{vname}.ts"),
                     format!("sampling period {ts} s differs from the estimation record's {ets} s"),
                 ));
             }
@@ -189,7 +226,7 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
         return Err(bad("grid.k", format!("k = {} appears twice", w[0])));
     }
     if let Some([lo, hi]) = job.band_hz {
-        check_band(lo, hi, job.data.ts.unwrap()).map_err(|m| bad("band_hz", format!("[{lo}, {hi}]: {m}")))?;
+        check_band(lo, hi, job.data.first().ts.unwrap()).map_err(|m| bad("band_hz", format!("[{lo}, {hi}]: {m}")))?;
     }
     let s = &job.solver;
     if s.max_iterations == 0 {

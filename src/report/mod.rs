@@ -96,7 +96,13 @@ struct Review {
 impl Review {
     /// A table row's model output on a record, in the data's units.
     fn output_of_row(&self, r: &CellRow, rec: &Record, is: InitialState) -> Vec<f64> {
-        model_output(&r.fit.b, &r.fit.f, r.key.delay as usize, r.fit.offset, self.u0, &rec.u, &rec.y, is)
+        // Each experiment of a list from its own initial state (METHOD.md 16).
+        let mut out = Vec::with_capacity(rec.len());
+        for e in rec.experiments() {
+            let (u, y) = (&rec.u[e.clone()], &rec.y[e]);
+            out.extend(model_output(&r.fit.b, &r.fit.f, r.key.delay as usize, r.fit.offset, self.u0, u, y, is));
+        }
+        out
     }
 
     fn load(folder: &Path) -> Result<Review> {
@@ -116,9 +122,11 @@ impl Review {
                 ))
             }
         };
-        gone(&job.job.data, "estimation")?;
-        if let Some(v) = &job.job.validation {
-            gone(v, "validation")?;
+        for spec in &job.job.data.specs {
+            gone(spec, "estimation")?;
+        }
+        for spec in job.job.validation.iter().flat_map(|v| &v.specs) {
+            gone(spec, "validation")?;
         }
         let (est, val) = crate::job::read_records(&job.job.data, job.job.validation.as_ref())?;
         let u0 = selection.input_level.unwrap_or(0.0);
@@ -375,7 +383,7 @@ fn bode_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -> Result<Se
     let picks: Vec<Picked> = m1.into_iter().chain(m2).collect();
     let mut figs = Vec::new();
     let mut notes = Vec::new();
-    match crate::spectral::estimate(&s.est.u, &s.est.y, s.ts(), s.job.job.spectrum) {
+    match crate::spectral::estimate_within(&s.est.u, &s.est.y, &s.est.seams, s.ts(), s.job.job.spectrum) {
         Ok(est) => {
             for p in &picks {
                 let file = format!("{FIGURE_PREFIX}bode-{}.svg", p.name.to_lowercase());

@@ -68,16 +68,42 @@ impl SpectrumMethod {
 /// The spectral estimate of a record by `method` (default Welch settings): the one entry
 /// point for the sweep, `oesweep fit`, `oesweep spectrum` and the report.
 pub fn estimate(u: &[f64], y: &[f64], ts: f64, method: SpectrumMethod) -> Result<SpectralEstimate> {
+    estimate_within(u, y, &[], ts, method)
+}
+
+/// [`estimate`] of a record of several experiments separated by `seams`
+/// ([`crate::data::Record::seams`]; empty: one): each experiment cleaned on its own, and the
+/// Welch spectra summed over the segments of every experiment, none across a seam (METHOD.md
+/// 16), so an experiment weighs by its length.
+pub fn estimate_within(
+    u: &[f64],
+    y: &[f64],
+    seams: &[usize],
+    ts: f64,
+    method: SpectrumMethod,
+) -> Result<SpectralEstimate> {
+    let opts = WelchOptions::default();
     match method {
-        SpectrumMethod::Welch => welch(u, y, ts, &WelchOptions::default()),
+        SpectrumMethod::Welch => welch_within(u, y, seams, ts, &opts),
         SpectrumMethod::Robust => {
             // Checked before cleaning so that its messages are Welch's.
             if u.len() != y.len() || u.len() < MIN_SAMPLES {
-                return welch(u, y, ts, &WelchOptions::default());
+                return welch_within(u, y, seams, ts, &opts);
             }
-            let cleaned = clean::clean(u, y, &clean::CleanOptions::default());
-            let mut est = welch(u, &cleaned.y, ts, &WelchOptions::default())?;
-            est.replaced = cleaned.replaced;
+            if seams.is_empty() {
+                let cleaned = clean::clean(u, y, &clean::CleanOptions::default());
+                let mut est = welch(u, &cleaned.y, ts, &opts)?;
+                est.replaced = cleaned.replaced;
+                return Ok(est);
+            }
+            let (mut all, mut replaced) = (Vec::with_capacity(y.len()), 0);
+            for e in crate::data::experiment_ranges(u.len(), seams) {
+                let cleaned = clean::clean(&u[e.clone()], &y[e], &clean::CleanOptions::default());
+                all.extend_from_slice(&cleaned.y);
+                replaced += cleaned.replaced;
+            }
+            let mut est = welch_within(u, &all, seams, ts, &opts)?;
+            est.replaced = replaced;
             Ok(est)
         }
     }
@@ -136,6 +162,13 @@ impl Default for WelchOptions {
 /// [`Error::Invalid`] when `u` and `y` differ in length, `N < 32`, `ts` is not a positive finite
 /// number, `overlap` is outside `[0, 1)`, or a sample is not finite.
 pub fn welch(u: &[f64], y: &[f64], ts: f64, opts: &WelchOptions) -> Result<SpectralEstimate> {
+    welch_within(u, y, &[], ts, opts)
+}
+
+/// [`welch`] over the experiments of a record separated by `seams` (empty: one): the segment
+/// length is set by the shortest experiment, and the segments of every experiment are summed
+/// (none crosses a seam).
+pub fn welch_within(u: &[f64], y: &[f64], seams: &[usize], ts: f64, opts: &WelchOptions) -> Result<SpectralEstimate> {
     let n = u.len();
     if y.len() != n {
         return Err(Error::Invalid(format!("spectral estimate: input has {n} samples but output has {}", y.len())));
@@ -153,10 +186,19 @@ pub fn welch(u: &[f64], y: &[f64], ts: f64, opts: &WelchOptions) -> Result<Spect
         return Err(Error::Invalid(format!("spectral estimate: non-finite sample at index {t}")));
     }
 
-    let m = segment_length(opts.segment, n);
+    let experiments = crate::data::experiment_ranges(n, seams);
+    let shortest = experiments.iter().map(|e| e.len()).min().unwrap_or(n);
+    if shortest < MIN_SAMPLES {
+        return Err(Error::Invalid(format!(
+            "spectral estimate: an experiment of {shortest} samples, need at least {MIN_SAMPLES}"
+        )));
+    }
+    let m = segment_length(opts.segment, shortest);
     // round() keeps 50 % overlap exact; clamp(1, ..) guards an overlap close to 1.
     let step = ((m as f64 * (1.0 - opts.overlap)).round() as usize).clamp(1, m);
-    let segments = 1 + (n - m) / step;
+    let starts: Vec<usize> =
+        experiments.iter().flat_map(|e| (0..1 + (e.len() - m) / step).map(move |s| e.start + s * step)).collect();
+    let segments = starts.len();
     let bins = m / 2 + 1;
 
     let fft = Fft::new(m);
@@ -168,8 +210,7 @@ pub fn welch(u: &[f64], y: &[f64], ts: f64, opts: &WelchOptions) -> Result<Spect
     let mut syu_re = vec![0.0; bins];
     let mut syu_im = vec![0.0; bins];
 
-    for s in 0..segments {
-        let start = s * step;
+    for &start in &starts {
         detrend_window(&u[start..start + m], &window, &mut ur, &mut ui);
         detrend_window(&y[start..start + m], &window, &mut yr, &mut yi);
         fft.forward(&mut ur, &mut ui);

@@ -245,6 +245,8 @@ pub const COLUMNS: &[Column] = &[
     column!(optional "fpe", Option<f64>, |r| r.fit.fpe),
     column!(optional "raic", Option<f64>, |r| r.fit.raic),
     column!(optional "rbic", Option<f64>, |r| r.fit.rbic),
+    column!(optional "fit_exp", Option<Vec<f64>>, |r| r.fit.fit_exp),
+    column!(optional "fit_val_exp", Option<Vec<f64>>, |r| r.fit.fit_val_exp),
 ];
 
 /// The column called `name`.

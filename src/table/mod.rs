@@ -157,6 +157,10 @@ pub struct Fit {
     /// rows).
     pub raic: Option<f64>,
     pub rbic: Option<f64>,
+    /// Fit % of each estimation and validation experiment of a job whose records are lists
+    /// (null for one experiment; METHOD.md 16).
+    pub fit_exp: Option<Vec<f64>>,
+    pub fit_val_exp: Option<Vec<f64>>,
 }
 
 /// A result row (see the module documentation; columns in [`COLUMNS`]).
@@ -229,6 +233,8 @@ impl CellRow {
                 b: x.b.to_vec(),
                 f: x.f.to_vec(),
                 offset: x.offset,
+                fit_exp: x.assessment.fit_exp.clone(),
+                fit_val_exp: x.assessment.fit_val_exp.clone(),
                 ..Fit::default()
             },
             evidence: x.assessment.evidence.clone(),
