@@ -240,3 +240,25 @@ def test_spectrum_equals_the_command_line(tmp_path):
         oesweep.spectrum(u, y, 0.01, method="periodogram")
     with pytest.raises(oesweep.JobError, match="ts"):
         oesweep.spectrum(u, y, -1.0)
+
+
+def test_a_job_file_with_several_experiments_runs_from_python_as_from_the_cli(tmp_path):
+    # Two experiments (different records of the same system), by paths relative to the job
+    # file, run from another directory: the table of `oesweep run`, and each experiment's fit.
+    (tmp_path / "jobs").mkdir()
+    for i, seed in enumerate((3, 4)):
+        write_csv(tmp_path / "jobs" / f"e{i}.csv", *record(800, seed=seed))
+    job = {
+        "name": "two",
+        "data": [{"path": "e0.csv", "u": "u", "y": "y", "ts": 0.01}, {"path": "e1.csv"}],
+        "grid": {"nb": [1, 2], "nf": [1, 2], "k": [1.0]},
+        "output": "two-cli",
+    }
+    (tmp_path / "jobs" / "job.json").write_text(json.dumps(job))
+    o = cli("run", str(tmp_path / "jobs" / "job.json"), "--quiet")
+    assert o.returncode == 0, o.stderr
+    s = oesweep.sweep(tmp_path / "jobs" / "job.json", output=tmp_path / "two-py", progress=False)
+    want = oesweep.load(tmp_path / "jobs" / "two-cli")
+    assert s.cells.drop("seconds").equals(want.cells.drop("seconds"))
+    assert all(len(f) == 2 for f in s.cells["fit_exp"].to_list())
+    assert s.m2.b == want.selection["m2"]["b"]
