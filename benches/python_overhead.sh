@@ -11,5 +11,6 @@ python3 -m venv "$venv"
 "$venv/bin/pip" install --quiet --upgrade pip
 "$venv/bin/pip" install --quiet numpy scipy polars
 "$venv/bin/pip" install --quiet ./python
-cargo build --release --quiet
-OESWEEP_BIN="$CARGO_TARGET_DIR/release/oesweep" "$venv/bin/python" benches/python_overhead.py "$@"
+cargo build --release --quiet --bin oesweep --example fit_arrays_time
+OESWEEP_FIT_EXAMPLE="$CARGO_TARGET_DIR/release/examples/fit_arrays_time" \
+    OESWEEP_BIN="$CARGO_TARGET_DIR/release/oesweep" "$venv/bin/python" benches/python_overhead.py "$@"

@@ -135,10 +135,17 @@ fn run(
     };
     let (outcome, raised) = py.detach(|| {
         std::thread::scope(|s| {
-            let engine = s.spawn(|| engine::run(&job, &opts, &|_| {}));
+            // The engine says when it ends, so the call returns at once rather than at the next poll.
+            let (ended, end) = std::sync::mpsc::channel::<()>();
+            let (job, opts) = (&job, &opts);
+            let engine = s.spawn(move || {
+                let outcome = engine::run(job, opts, &|_| {});
+                let _ = ended.send(());
+                outcome
+            });
             let mut raised = None;
-            while !engine.is_finished() {
-                std::thread::sleep(POLL);
+            // A panicking engine drops `ended` without sending: Disconnected ends the wait too.
+            while let Err(std::sync::mpsc::RecvTimeoutError::Timeout) = end.recv_timeout(POLL) {
                 if raised.is_none()
                     && let Err(e) = poll()
                 {

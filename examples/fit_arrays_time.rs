@@ -1,0 +1,53 @@
+//! `cargo run --release --example fit_arrays_time -- FILE NB NF K TS`: the library's own time
+//! for one `oesweep.fit` call, the reference of `benches/python_overhead.py`. FILE holds u then
+//! y as little-endian float64 (N each). The timed call is what the Python package asks the
+//! library for: the record from owned vectors (`Record::from_arrays`) and `engine::fit_arrays`
+//! with the Python defaults (delay 1, offset and initial state estimated). One warm-up call,
+//! then one timed call; prints its seconds.
+
+use oesweep::data::{ColumnRef, Offset, Record};
+use oesweep::engine::{self, FitRequest};
+use oesweep::estimate::{InitialState, SolverOptions};
+use oesweep::spectral::SpectrumMethod;
+use std::path::PathBuf;
+use std::time::Instant;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let [file, nb, nf, k, ts] = &args[..] else {
+        eprintln!("usage: fit_arrays_time FILE NB NF K TS");
+        std::process::exit(2);
+    };
+    let bytes = std::fs::read(file).expect("read FILE");
+    let all: Vec<f64> = bytes.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
+    let (u, y) = all.split_at(all.len() / 2);
+    let req = FitRequest {
+        data: PathBuf::from("<u, y arrays>"),
+        u: ColumnRef::Name("u".into()),
+        y: ColumnRef::Name("y".into()),
+        rows: None,
+        validation: None,
+        val_y: None,
+        val_rows: None,
+        offset: Offset::Estimate,
+        initial_state: InitialState::Estimate,
+        spectrum: SpectrumMethod::default(),
+        nb: nb.parse().unwrap(),
+        nf: nf.parse().unwrap(),
+        k: k.parse().unwrap(),
+        delay: 1,
+        ts: Some(ts.parse().unwrap()),
+        band: None,
+        solver: SolverOptions::default(),
+    };
+    let call = || {
+        let (u, y) = (u.to_vec(), y.to_vec());
+        let t0 = Instant::now();
+        let rec = Record::from_arrays("<u, y arrays>", u, y).unwrap();
+        let report = engine::fit_arrays(&req, rec, None).unwrap();
+        (t0.elapsed().as_secs_f64(), report.seconds)
+    };
+    call();
+    let (wall, _) = call();
+    println!("{wall:.9}");
+}
