@@ -2,7 +2,7 @@
 
 1. ``oesweep.fit`` against the library's time for the same call (``Record::from_arrays`` and
    ``engine::fit_arrays`` timed in Rust by ``examples/fit_arrays_time.rs``), interleaved
-   repeats: the target is python <= 1.05 * library + 1 ms.
+   repeats: the target is python <= 1.05 * library + 1 ms, as the median over the pairs.
 2. ``oesweep.sweep`` against ``oesweep run`` on the same job, interleaved: cells per second.
 3. Copies: a float64 array reaches the engine without a conversion copy (the engine copies it
    once into its record).
@@ -62,10 +62,12 @@ for n, (nb, nf) in ((2_000, (3, 3)), (20_000, (3, 3)), (20_000, (8, 8))):
         walls.append(time.perf_counter() - t0)
     os.unlink(raw.name)
     over = [w - e for w, e in zip(walls, library)]
-    w, e = statistics.median(walls), statistics.median(library)
-    verdict = "met" if w <= 1.05 * e + 1e-3 else "NOT met"
+    # Paired: each Python call against the library call next to it, so that the machine's drift
+    # (up to +-30 % between neighbouring minutes on a shared VM) cancels.
+    excess = statistics.median(w - (1.05 * e + 1e-3) for w, e in zip(walls, library))
+    verdict = "met" if excess <= 0 else "NOT met"
     print(f"fit N={n} OE({nb},{nf}): python {med(walls)}, library {med(library)}, difference {med(over)}; "
-          f"target python <= 1.05 library + 1 ms: {verdict}")
+          f"target python <= 1.05 library + 1 ms (median over pairs): {verdict}")
 
 # 2. sweep against the CLI, the same job, interleaved.
 if BIN:
