@@ -121,6 +121,38 @@ class Model:
         """The model's fields (JSON-serialisable); ``Model(d)`` rebuilds it."""
         return json.loads(json.dumps(self._fields))
 
+    def export(self, path: Optional[Union[str, os.PathLike]] = None, to: str = "json") -> Optional[str]:
+        """The model as ``oesweep export --to json|matlab|mat`` writes it: ``"json"`` (``num``,
+        ``den``, ``dt``, offset, delay, covariance), ``"matlab"`` (a script that builds the
+        ``tf`` and, with the System Identification Toolbox, the ``idpoly``) or ``"mat"`` (a
+        level-5 MAT-file, ``path`` required). Writes ``path`` when given, else returns the text."""
+        k = f" at k = {self.k}" if self.k is not None else " (least squares)"
+        doc = {
+            "model": self.model or f"OE({len(self.b)},{len(self.f)}) delay {self.delay}{k}",
+            "dt": float(self.ts),
+            "b": list(self.b),
+            "f": list(self.f),
+            "delay": int(self.delay),
+            "k": self.k,
+            "offset": self.offset,
+            "input_level": float(self.input_level or 0.0),
+            "parameters": list(self.parameters or []),
+            "covariance": self.covariance,
+            "noise_variance": self.noise_variance
+            if self.noise_variance is not None
+            else (float(self.sigma) ** 2 if self.sigma is not None else None),
+        }
+        if to == "mat":
+            if path is None:
+                raise JobError('to="mat" writes a binary file: give its path')
+            _oesweep.write_model(json.dumps(doc), to, str(path))
+            return None
+        text = _oesweep.write_model(json.dumps(doc), to)
+        if path is None:
+            return text
+        Path(path).write_text(text)
+        return None
+
     def __repr__(self) -> str:
         k = f" k = {self.k}" if self.k is not None else " (least squares)"
         fits = [f"{name} = {v:.2f} %" for name, v in (("fit", self.fit), ("fit_val", self.fit_val)) if v is not None]

@@ -205,6 +205,21 @@ fn export(py: Python<'_>, folder: PathBuf, pick: Option<&str>) -> PyResult<Strin
     Ok(model.to_json_text())
 }
 
+/// A model document (`oesweep export --to json`'s form) as `to` = "json" or "matlab" text, or
+/// with "mat" written to `out` as a MAT-file; returns the text ("" for "mat").
+#[pyfunction]
+#[pyo3(signature = (doc, to, out=None))]
+fn write_model(doc: &str, to: &str, out: Option<PathBuf>) -> PyResult<String> {
+    let model = oesweep::export::model::ModelOut::from_json_text(doc).map_err(JobError::new_err)?;
+    match (to, out) {
+        ("json", _) => Ok(model.to_json_text()),
+        ("matlab", _) => Ok(model.to_matlab()),
+        ("mat", Some(out)) => model.write_mat(&out).map(|_| String::new()).map_err(to_py),
+        ("mat", None) => Err(JobError::new_err("to=\"mat\" writes a binary file: give its path")),
+        (other, _) => Err(JobError::new_err(format!("to {other:?}: expected json, matlab or mat"))),
+    }
+}
+
 #[pymodule]
 fn _oesweep(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("JobError", m.py().get_type::<JobError>())?;
@@ -214,6 +229,7 @@ fn _oesweep(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(report, m)?)?;
     m.add_function(wrap_pyfunction!(spectrum, m)?)?;
     m.add_function(wrap_pyfunction!(export, m)?)?;
+    m.add_function(wrap_pyfunction!(write_model, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

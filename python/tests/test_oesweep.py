@@ -262,3 +262,42 @@ def test_a_job_file_with_several_experiments_runs_from_python_as_from_the_cli(tm
     assert s.cells.drop("seconds").equals(want.cells.drop("seconds"))
     assert all(len(f) == 2 for f in s.cells["fit_exp"].to_list())
     assert s.m2.b == want.selection["m2"]["b"]
+
+
+def test_models_leave_as_the_command_line_exports_them_and_the_mat_file_reads_back(tmp_path):
+    import scipy.io
+
+    u, y = record()
+    job = job_for(tmp_path, u, y, "exp")
+    s = oesweep.sweep(job, progress=False)
+    out = tmp_path / "exp"
+    for pick in ("m2", "rbic"):
+        m = s.pick(pick)
+        o = cli("export", str(out), "--pick", pick, "--to", "json")
+        assert o.returncode == 0, o.stderr
+        assert m.export(to="json") == o.stdout
+        o = cli("export", str(out), "--pick", pick, "--to", "matlab")
+        assert m.export(to="matlab") == o.stdout
+        o = cli("export", str(out), "--pick", pick, "--to", "mat", "--out", str(tmp_path / f"{pick}.mat"))
+        assert o.returncode == 0, o.stderr
+        m.export(tmp_path / f"{pick}-py.mat", to="mat")
+        doc = json.loads(m.export(to="json"))
+        cov = np.array(doc["covariance"])
+        for f in (f"{pick}.mat", f"{pick}-py.mat"):
+            mat = scipy.io.loadmat(tmp_path / f)
+            np.testing.assert_array_equal(mat["B"].ravel(), [0.0] * doc["delay"] + doc["b"])
+            np.testing.assert_array_equal(mat["F"].ravel(), [1.0] + doc["f"])
+            np.testing.assert_array_equal(mat["covariance"], cov)
+            assert mat["Ts"].item() == doc["dt"]
+    # A model from `fit` carries its covariance and leaves the same way.
+    m = oesweep.fit(u, y, 2, 2, 0.5, ts=0.01)
+    assert m.parameters == ["b1", "b2", "f1", "f2", "offset"]
+    assert np.allclose(np.sqrt(np.diag(m.covariance))[:4], list(m.b_std) + list(m.f_std), rtol=1e-6)
+    doc = json.loads(m.export(to="json"))
+    assert doc["b"] == m.b and doc["dt"] == 0.01 and len(doc["covariance"]) == 5
+    m.export(tmp_path / "fit.mat", to="mat")
+    np.testing.assert_array_equal(scipy.io.loadmat(tmp_path / "fit.mat")["covariance"], np.array(m.covariance))
+    with pytest.raises(oesweep.JobError, match="path"):
+        m.export(to="mat")
+    with pytest.raises(oesweep.JobError, match="expected json, matlab or mat"):
+        m.export(to="csv")

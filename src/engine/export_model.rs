@@ -72,11 +72,7 @@ pub fn export_model(folder: &Path, spec: Option<&PickSpec>) -> Result<(ModelOut,
         },
     };
     let estimated = res.selection.offset.is_some_and(|o| o.estimated());
-    let mut parameters: Vec<String> = (1..=row.fit.b.len()).map(|i| format!("b{i}")).collect();
-    parameters.extend((1..=row.fit.f.len()).map(|j| format!("f{j}")));
-    if estimated {
-        parameters.push("offset".into());
-    }
+    let parameters = crate::export::model::parameter_names(row.fit.b.len(), row.fit.f.len(), estimated);
     let k = row.k.map_or(" (least squares)".to_string(), |k| format!(" at k = {k}"));
     let model = ModelOut {
         name: format!("OE({},{}) delay {}{k}, {label}", row.key.nb, row.key.nf, row.key.delay),

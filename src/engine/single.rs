@@ -61,6 +61,11 @@ pub struct FitReport {
     #[serde(flatten)]
     pub huber: HuberFit,
     pub converged: bool,
+    /// The names of the Huber fit's parameters (b1.., f1.., offset when estimated) and their
+    /// covariance, one row per parameter (None when it cannot be computed), as `oesweep
+    /// export` gives them.
+    pub parameters: Vec<String>,
+    pub covariance: Option<Vec<Vec<f64>>>,
     pub seconds: f64,
     pub ls: LsFit,
 }
@@ -169,6 +174,12 @@ fn fit_records(
     let mut ls = estimate::fit_ls(&prob, &judge, &req.solver, &mut ws);
     let (mut huber, _) = estimate::fit_huber_multi(&prob, &ls, req.k, &judge, &req.solver, &mut ws);
     let seconds = t0.elapsed().as_secs_f64();
+    let theta = huber.theta();
+    let loss = estimate::Loss::Huber { gamma: huber.gamma };
+    let dim = theta.len();
+    let covariance = estimate::evidence::covariance(&prob, &theta, loss, &prob.simulate_vec(&theta))
+        .map(|c| c.chunks(dim).map(<[f64]>::to_vec).collect());
+    let parameters = crate::export::model::parameter_names(req.nb, req.nf, req.offset.estimated());
     // Reported in the data's units, as in the table.
     ls.offset = levels.offset(ls.offset);
     huber.offset = levels.offset(huber.offset);
@@ -188,6 +199,8 @@ fn fit_records(
         sigma: ls.sigma,
         converged: huber.termination.converged(),
         huber,
+        parameters,
+        covariance,
         seconds,
         ls,
     })

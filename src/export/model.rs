@@ -40,7 +40,43 @@ pub struct ModelOut {
     pub noise_variance: Option<f64>,
 }
 
+/// Names of a model's parameters in the covariance's order: b1.., f1.., and "offset" when
+/// it was estimated.
+pub fn parameter_names(nb: usize, nf: usize, offset: bool) -> Vec<String> {
+    let mut names: Vec<String> = (1..=nb).map(|i| format!("b{i}")).collect();
+    names.extend((1..=nf).map(|j| format!("f{j}")));
+    if offset {
+        names.push("offset".into());
+    }
+    names
+}
+
 impl ModelOut {
+    /// The model of a JSON document of [`Self::to_json_text`]'s form (the Python package's
+    /// `Model.export`): `num`, `den` are not needed, `b`, `f`, `delay` and `dt` are.
+    pub fn from_json_text(text: &str) -> std::result::Result<ModelOut, String> {
+        let d: DocIn = serde_json::from_str(text).map_err(|e| format!("not a model: {e}"))?;
+        let n = d.parameters.len();
+        let covariance = match d.covariance {
+            Some(rows) if rows.len() == n && rows.iter().all(|r| r.len() == n) => Some(rows.concat()),
+            Some(_) => return Err(format!("the covariance is not {n} x {n}, one row per parameter")),
+            None => None,
+        };
+        Ok(ModelOut {
+            name: d.model,
+            delay: d.delay,
+            k: d.k,
+            ts: d.dt,
+            b: d.b,
+            f: d.f,
+            offset: d.offset,
+            input_level: d.input_level,
+            covariance,
+            parameters: d.parameters,
+            noise_variance: d.noise_variance,
+        })
+    }
+
     /// `num`, `den` in descending powers of z, of equal length (module docs).
     pub fn num_den(&self) -> (Vec<f64>, Vec<f64>) {
         let d = self.delay as usize;
@@ -200,6 +236,29 @@ struct Doc<'a> {
     noise_variance: Option<f64>,
 }
 
+/// What [`ModelOut::from_json_text`] reads of a [`Doc`].
+#[derive(serde::Deserialize)]
+struct DocIn {
+    #[serde(default)]
+    model: String,
+    dt: f64,
+    b: Vec<f64>,
+    f: Vec<f64>,
+    delay: u32,
+    #[serde(default)]
+    k: Option<f64>,
+    #[serde(default)]
+    offset: Option<f64>,
+    #[serde(default)]
+    input_level: f64,
+    #[serde(default)]
+    parameters: Vec<String>,
+    #[serde(default)]
+    covariance: Option<Vec<Vec<f64>>>,
+    #[serde(default)]
+    noise_variance: Option<f64>,
+}
+
 /// Shortest text that reads back as exactly `x` in MATLAB (NaN and Inf by their names).
 fn matlab_number(x: f64) -> String {
     if x.is_nan() {
@@ -229,6 +288,19 @@ mod tests {
             parameters: vec!["b1".into(), "b2".into(), "f1".into(), "offset".into()],
             noise_variance: Some(0.01),
         }
+    }
+
+    /// The JSON document reads back as the model it was written from (the Python package's
+    /// `Model.export` relies on it); a covariance of the wrong shape is refused.
+    #[test]
+    fn the_json_document_reads_back_as_the_model() {
+        let m = model();
+        assert_eq!(ModelOut::from_json_text(&m.to_json_text()).unwrap(), m);
+        let mut doc = m.to_json();
+        doc["covariance"] = serde_json::json!([[1.0, 2.0], [2.0, 1.0]]);
+        let err = ModelOut::from_json_text(&doc.to_string()).unwrap_err();
+        assert!(err.contains("not 4 x 4"), "{err}");
+        assert!(ModelOut::from_json_text("{}").unwrap_err().starts_with("not a model"));
     }
 
     #[test]
