@@ -5,11 +5,9 @@
 //! with the Python defaults (delay 1, offset and initial state estimated). One warm-up call,
 //! then one timed call; prints its seconds.
 
-use oesweep::data::{ColumnRef, Offset, Record};
+use oesweep::data::{Offset, Record};
 use oesweep::engine::{self, FitRequest};
-use oesweep::estimate::{InitialState, SolverOptions};
-use oesweep::spectral::SpectrumMethod;
-use std::path::PathBuf;
+use oesweep::estimate::InitialState;
 use std::time::Instant;
 
 fn main() {
@@ -21,25 +19,8 @@ fn main() {
     let bytes = std::fs::read(file).expect("read FILE");
     let all: Vec<f64> = bytes.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
     let (u, y) = all.split_at(all.len() / 2);
-    let req = FitRequest {
-        data: PathBuf::from("<u, y arrays>"),
-        u: ColumnRef::Name("u".into()),
-        y: ColumnRef::Name("y".into()),
-        rows: None,
-        validation: None,
-        val_y: None,
-        val_rows: None,
-        offset: Offset::Estimate,
-        initial_state: InitialState::Estimate,
-        spectrum: SpectrumMethod::default(),
-        nb: nb.parse().unwrap(),
-        nf: nf.parse().unwrap(),
-        k: k.parse().unwrap(),
-        delay: 1,
-        ts: Some(ts.parse().unwrap()),
-        band: None,
-        solver: SolverOptions::default(),
-    };
+    let (nb, nf, k, ts) = (nb.parse().unwrap(), nf.parse().unwrap(), k.parse().unwrap(), ts.parse().unwrap());
+    let req = FitRequest::for_arrays((nb, nf, 1), k, ts, Offset::Estimate, InitialState::Estimate);
     let call = || {
         let (u, y) = (u.to_vec(), y.to_vec());
         let t0 = Instant::now();

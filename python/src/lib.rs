@@ -3,9 +3,9 @@
 //! the Python types and the binding stays independent of numpy's and polars' versions. Every
 //! call releases the GIL while the engine works.
 
-use oesweep::data::{ColumnRef, Offset, Record};
+use oesweep::data::{Offset, Record};
 use oesweep::engine::{self, FitRequest, RunEnd, RunOptions, Watch};
-use oesweep::estimate::{InitialState, SolverOptions};
+use oesweep::estimate::InitialState;
 use oesweep::spectral::SpectrumMethod;
 use pyo3::create_exception;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
@@ -78,25 +78,13 @@ fn fit(
         (None, None) => None,
         _ => return Err(DataError::new_err("validation needs both u and y")),
     };
-    let req = FitRequest {
-        data: PathBuf::from("<u, y arrays>"),
-        u: ColumnRef::Name("u".into()),
-        y: ColumnRef::Name("y".into()),
-        rows: None,
-        validation: None,
-        val_y: None,
-        val_rows: None,
-        offset: parse::<Offset>("offset", offset)?,
-        initial_state: parse::<InitialState>("initial_state", initial_state)?,
-        spectrum: SpectrumMethod::default(),
-        nb,
-        nf,
+    let req = FitRequest::for_arrays(
+        (nb, nf, delay),
         k,
-        delay,
-        ts: Some(ts),
-        band: None,
-        solver: SolverOptions::default(),
-    };
+        ts,
+        parse::<Offset>("offset", offset)?,
+        parse::<InitialState>("initial_state", initial_state)?,
+    );
     let report = py.detach(|| engine::fit_arrays(&req, est, val)).map_err(to_py)?;
     serde_json::to_string(&report).map_err(|e| PyRuntimeError::new_err(e.to_string()))
 }

@@ -71,6 +71,36 @@ pub struct FitReport {
 }
 
 impl FitRequest {
+    /// A request for records in memory ([`fit_arrays`]: the Python package's `oesweep.fit`),
+    /// the other settings at `oesweep fit`'s defaults.
+    pub fn for_arrays(
+        (nb, nf, delay): (usize, usize, usize),
+        k: f64,
+        ts: f64,
+        offset: data::Offset,
+        initial_state: InitialState,
+    ) -> FitRequest {
+        FitRequest {
+            data: PathBuf::from("<u, y arrays>"),
+            u: ColumnRef::Name("u".into()),
+            y: ColumnRef::Name("y".into()),
+            rows: None,
+            validation: None,
+            val_y: None,
+            val_rows: None,
+            offset,
+            initial_state,
+            spectrum: spectral::SpectrumMethod::default(),
+            nb,
+            nf,
+            k,
+            delay,
+            ts: Some(ts),
+            band: None,
+            solver: SolverOptions::default(),
+        }
+    }
+
     /// The job file's rules, named as the command line names the settings.
     fn check(&self) -> Result<()> {
         let bad = |flag: &str, msg: String| Error::Invalid(format!("{flag} {msg}"));
