@@ -20,7 +20,7 @@ import numpy as np
 from . import _oesweep
 from ._oesweep import DataError, JobError
 
-__all__ = ["fit", "sweep", "load", "spectrum", "Model", "Sweep", "JobError", "DataError", "__version__"]
+__all__ = ["fit", "read", "sweep", "load", "spectrum", "Model", "Sweep", "JobError", "DataError", "__version__"]
 __version__ = _oesweep.__version__
 
 ArrayLike = Union[np.ndarray, Sequence[float], Any]
@@ -187,6 +187,28 @@ def fit(
     fields["ts"] = float(ts)
     fields["least_squares"] = report["ls"]
     return Model(fields)
+
+
+def read(
+    path: Union[str, os.PathLike],
+    *,
+    u: Union[str, int] = "u",
+    y: Union[str, int] = "y",
+    rows: Optional[Sequence[int]] = None,
+    delimiter: Optional[str] = None,
+    header: Union[bool, str, None] = None,
+) -> tuple:
+    """The input and output columns of a data file as ``(u, y)`` float64 arrays, read as a job
+    file's record is (text with any delimiter and quoting, Parquet, MAT): ``u``, ``y`` a column
+    name or a 1-based position, ``rows`` ``[first, last]`` (1-based, inclusive), ``delimiter``
+    ``","``, ``";"``, ``"tab"`` or ``"whitespace"`` (default: sniffed), ``header`` ``True``,
+    ``False`` or ``"auto"``. ``oesweep.fit(*oesweep.read("run.csv", rows=[1, 5000]), ...)``."""
+    spec: Dict[str, Any] = {"path": os.fspath(path), "u": u, "y": y}
+    for key, value in (("rows", rows), ("delimiter", delimiter), ("header", header)):
+        if value is not None:
+            spec[key] = list(value) if key == "rows" else value
+    bu, by = _oesweep.read(json.dumps(spec))
+    return np.frombuffer(bu, dtype="<f8").copy(), np.frombuffer(by, dtype="<f8").copy()
 
 
 class Sweep:

@@ -10,6 +10,7 @@ use oesweep::spectral::SpectrumMethod;
 use pyo3::create_exception;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::PyBytes;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -208,6 +209,20 @@ fn write_model(doc: &str, to: &str, out: Option<PathBuf>) -> PyResult<String> {
     }
 }
 
+/// The u and y columns of a data file named as a job file names a record (JSON text of its
+/// fields), as little-endian float64 bytes.
+#[pyfunction]
+fn read(py: Python<'_>, spec: &str) -> PyResult<(Py<PyBytes>, Py<PyBytes>)> {
+    let spec: oesweep::job::DataSpec =
+        serde_json::from_str(spec).map_err(|e| JobError::new_err(format!("record: {e}")))?;
+    let rec = py.detach(|| oesweep::job::read_record(&spec)).map_err(to_py)?;
+    let bytes = |v: &[f64]| -> Py<PyBytes> {
+        let raw: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        PyBytes::new(py, &raw).unbind()
+    };
+    Ok((bytes(&rec.u), bytes(&rec.y)))
+}
+
 #[pymodule]
 fn _oesweep(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("JobError", m.py().get_type::<JobError>())?;
@@ -218,6 +233,7 @@ fn _oesweep(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(spectrum, m)?)?;
     m.add_function(wrap_pyfunction!(export, m)?)?;
     m.add_function(wrap_pyfunction!(write_model, m)?)?;
+    m.add_function(wrap_pyfunction!(read, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

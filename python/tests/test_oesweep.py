@@ -301,3 +301,23 @@ def test_models_leave_as_the_command_line_exports_them_and_the_mat_file_reads_ba
         m.export(to="mat")
     with pytest.raises(oesweep.JobError, match="expected json, matlab or mat"):
         m.export(to="csv")
+
+
+def test_read_takes_a_file_as_a_job_names_a_record(tmp_path):
+    u, y = record(1200)
+    path = tmp_path / "run.csv"
+    with open(path, "w") as fh:  # ;-separated, quoted header, columns in another order
+        fh.write('"time";"y out";"u in"\n')
+        for i, (a, b) in enumerate(zip(u, y)):
+            fh.write(f"{i};{float(b)!r};{float(a)!r}\n")
+    ru, ry = oesweep.read(path, u="u in", y=2, rows=[1, 1000])
+    np.testing.assert_array_equal(ru, u[:1000])
+    np.testing.assert_array_equal(ry, y[:1000])
+    m = oesweep.fit(*oesweep.read(path, u=3, y="y out"), 2, 2, 0.5, ts=0.01)
+    assert m.b == oesweep.fit(u, y, 2, 2, 0.5, ts=0.01).b
+    with pytest.raises(oesweep.JobError, match="rows"):
+        oesweep.read(path, u=3, y=2, rows=[5, 1])
+    with pytest.raises(oesweep.DataError, match="no such column|column"):
+        oesweep.read(path, u="volts", y=2)
+    with pytest.raises(oesweep.DataError, match="missing.csv"):
+        oesweep.read(tmp_path / "missing.csv")

@@ -83,6 +83,15 @@ impl DataSpec {
     }
 }
 
+/// One record named as the job file names it (path, columns, rows, delimiter, header), read on
+/// its own: the Python package's `oesweep.read`. The reader fields are checked as the job's,
+/// named `field 'rows'` and so on.
+pub fn read_record(spec: &DataSpec) -> Result<data::Record> {
+    validate::check_data_spec(spec, "data")
+        .map_err(|(f, m)| Error::Invalid(format!("field '{}': {m}", f.trim_start_matches("data."))))?;
+    data::read_record_with(&spec.path, &spec.u_col(), &spec.y_col(), &spec.read_options())
+}
+
 /// The records of `data` or `validation`: one object (the usual job) or a list of them, one per
 /// experiment (METHOD.md 16). Written back in the form it was read, so the job.json of a
 /// one-object job is what it always was.

@@ -30,7 +30,7 @@ pub fn check_band(lo: f64, hi: f64, ts: f64) -> std::result::Result<(), String> 
 }
 
 /// The reader fields of a data spec (`which` is "data" or "validation"): (field, message).
-fn check_data_spec(d: &DataSpec, which: &str) -> std::result::Result<(), (String, String)> {
+pub(super) fn check_data_spec(d: &DataSpec, which: &str) -> std::result::Result<(), (String, String)> {
     if let Some(delim) = &d.delimiter {
         Delimiter::parse(delim).map_err(|m| (format!("{which}.delimiter"), m))?;
     }
