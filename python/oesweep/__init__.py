@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -244,9 +245,23 @@ class Sweep:
     def m2(self) -> Optional[Model]:
         return self.pick("m2") if self.selection.get("m2") else None
 
-    def report(self) -> Path:
-        """Write ``report.html`` and its figures into the results folder; returns its path."""
-        return Path(_oesweep.report(str(self.folder)))
+    def report(self, path: Optional[Union[str, os.PathLike]] = None) -> Path:
+        """Write ``report.html`` and its figures (``report-*.svg``) into the results folder, as
+        ``oesweep report`` does; returns the page's path. With ``path``, the page is also
+        written there, its figures copied beside it and its links to the run's tables pointing
+        back into the results folder."""
+        page = Path(_oesweep.report(str(self.folder)))
+        if path is None:
+            return page
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        html = page.read_text()
+        for figure in sorted(self.folder.glob("report-*.svg")):
+            shutil.copyfile(figure, path.parent / figure.name)
+        for name in ("cells.parquet", "selection.json", "job.json"):
+            html = html.replace(f'href="{name}"', f'href="{(self.folder / name).resolve().as_uri()}"')
+        path.write_text(html)
+        return path
 
     def __repr__(self) -> str:
         return f"Sweep({str(self.folder)!r}, rule = {self.selection.get('rule')})"

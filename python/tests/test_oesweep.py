@@ -3,6 +3,7 @@ and the model's forms against scipy."""
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import signal
@@ -108,6 +109,12 @@ def test_sweep_gives_the_table_and_picks_of_oesweep_run_and_load_reads_it(tmp_pa
     assert len(s.m2.covariance) == len(s.m2.parameters)
     assert s.pick("rbic").b == cli_run.selection["picks"]["rbic"]["model"]["b"]
     assert s.report().name == "report.html"
+    # Elsewhere: the page with its figures beside it and its table links into the run.
+    page = s.report(tmp_path / "review" / "orders.html")
+    html = page.read_text()
+    figures = re.findall(r'src="(report-[^"]+\.svg)"', html)
+    assert figures and all((page.parent / f).is_file() for f in figures)
+    assert (tmp_path / "py" / "cells.parquet").resolve().as_uri() in html
 
 
 def test_load_reads_a_run_merged_from_shards(tmp_path):
