@@ -13,7 +13,9 @@
 #            (also printed: the same to 8 k per pair, 768 cells, for reading older figures);
 #   ratio    peer / ours, per run (ours and the peer's sample interleaved RUNS times);
 #   quality  the sample's cells where oesweep's criterion is no worse than the peer's at the
-#            same gamma, relative 1e-4 (examples/compare_peer_grid.rs, sweep start strategy).
+#            same gamma, relative 1e-4 (examples/compare_peer_grid.rs, sweep start strategy);
+#   where    the last run's `--profile`: solver fits and iterations by role, worker time by
+#            phase (solver, evidence, judging, the rest), reading and writing.
 #
 #   RUNS=5 bash benches/ratio.sh
 #
@@ -51,7 +53,7 @@ ks=$(python3 -c "print(','.join(repr(0.05 * (2 / 0.05) ** (i / 39)) for i in ran
 
 for i in $(seq "$runs"); do
     s=$(date +%s.%N)
-    "$bin" run "$work/pg.json" --threads 2 --quiet --force >/dev/null
+    "$bin" run "$work/pg.json" --threads 2 --quiet --force --profile "$work/profile_$i.json" >/dev/null 2>&1
     e=$(date +%s.%N)
     echo "$s $e" >"$work/ours_$i"
     python3 "$peer" --est "$est" --val "$val" --grid nb=8,10,13 nf=6,10,14 "k=$ks" --jobs 1 \
@@ -90,6 +92,28 @@ print(f"(peer extrapolated to 8 k per pair, 2 processes: {rng(peer8, '{:.1f}')} 
 PY
 echo "== quality on the sample (the peer's first run; relative 1e-4, the sweep's chains)"
 "$CARGO_TARGET_DIR/release/examples/compare_peer_grid" "$est" "$work/peer_1.jsonl" 2>&1 | tail -4
+echo "== where the time goes (the last run's --profile; worker seconds summed over 2 threads)"
+python3 - "$work/profile_$runs.json" "$work/pg/cells.parquet" <<'PY'
+import json, sys
+p = json.load(open(sys.argv[1]))
+fits = sum(r["fits"] for r in p["roles"])
+its = sum(r["iterations"] for r in p["roles"])
+print(f"{'role':<14} {'fits':>6} {'iterations':>11} {'per fit':>8} {'solver s':>9}")
+for r in p["roles"]:
+    if r["fits"]:
+        print(f"{r['role']:<14} {r['fits']:>6} {r['iterations']:>11} {r['iterations'] / r['fits']:>8.1f} {r['solver_seconds']:>9.2f}")
+print(f"{'all':<14} {fits:>6} {its:>11} {its / fits:>8.1f}")
+print(f"iterations per table row (3840 Huber cells + 96 least-squares fits): {its / 3936:.1f}")
+ph = {x["phase"]: x["seconds"] for x in p["phases"]}
+work = ph["least_squares_phase"] + ph["huber_phase"]
+solver = sum(r["solver_seconds"] for r in p["roles"])
+print(f"sweep wall {ph['sweep']:.2f} s, worker time {work:.2f} s: solver {solver:.2f} ({100 * solver / work:.0f} %), "
+      f"evidence {ph['evidence']:.2f} ({100 * ph['evidence'] / work:.0f} %), judging (fit %, validation, band) "
+      f"{ph['judge']:.2f} ({100 * ph['judge'] / work:.0f} %), rest (initial guesses, bookkeeping) "
+      f"{work - solver - ph['evidence'] - ph['judge']:.2f}")
+print(f"outside the sweep (wall): reading {ph['read']:.2f} s (of which the spectrum {ph['spectrum']:.2f}), "
+      f"reducing and writing {ph['write']:.2f} s")
+PY
 python3 - "$work/pg/selection.json" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))

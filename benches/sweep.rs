@@ -30,6 +30,7 @@ fn sweep_throughput(c: &mut Criterion) {
         solver: SolverOptions::default(),
         levels: oesweep::data::Levels::none(),
         initial_state: oesweep::estimate::InitialState::Zero,
+        profile: None,
     };
     let mut group = c.benchmark_group("sweep");
     group.sample_size(10).measurement_time(Duration::from_secs(20)).warm_up_time(Duration::from_secs(1));

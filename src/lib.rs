@@ -16,6 +16,7 @@ pub mod kernels;
 pub mod lock;
 pub mod oe;
 pub mod plan;
+pub mod profile;
 pub mod progress;
 pub mod reduce;
 pub mod report;

@@ -25,12 +25,14 @@ use crate::estimate::chains::{CellOutcome, PairProblem, panic_message, walk_pair
 use crate::estimate::{self, InitialState, Judge, Problem, SolverOptions, StartKind, Workspace};
 use crate::job::StartStrategy;
 use crate::plan::{Cell, Plan, Structure};
+use crate::profile::{Phase, Profile, Role, Span};
 use crate::progress::Progress;
 use crate::spectral::SpectralEstimate;
 use crate::table::{CellRow, RowKey, sort_rows};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
@@ -45,9 +47,16 @@ pub struct Context<'a> {
     /// output offset.
     pub levels: Levels,
     pub initial_state: InitialState,
+    /// The run's counters when it is profiled ([`crate::profile`]).
+    pub profile: Option<Arc<Profile>>,
 }
 
 impl Context<'_> {
+    /// A worker's workspace, counting into the run's profile.
+    fn workspace(&self) -> Workspace {
+        Workspace::profiled(self.profile.clone())
+    }
+
     fn judge(&self) -> Judge<'_> {
         Judge {
             validation: self.val.map(|v| (&v.u[..], &v.y[..])),
@@ -200,6 +209,8 @@ fn run_in_pool(
         }
         let prob = ctx.problem(pair);
         let t = Instant::now();
+        let _span = Span::start(ctx.profile.as_deref(), Phase::LeastSquares);
+        ws.role = Role::LeastSquares;
         // A resumed pair with cells left is fitted again for its extra Huber starts: the
         // least-squares phase is deterministic, so this reproduces the interrupted run.
         let fit = catch_unwind(AssertUnwindSafe(|| estimate::fit_ls_nested(&prob, &judge, &ctx.solver, nested, ws)));
@@ -229,20 +240,23 @@ fn run_in_pool(
         let fitted: Vec<(usize, Option<(PairLs, bool)>)> = wave
             .par_iter()
             .with_max_len(1)
-            .map_init(Workspace::new, |ws, &p| {
-                let pair = &ls_pairs[p];
-                let prob = ctx.problem(pair);
-                let subs: &[usize] = if ctx.solver.nested_starts { &subs[p] } else { &[] };
-                let nested: Vec<Vec<f64>> = subs
-                    .iter()
-                    .filter_map(|&s| {
-                        let (sub, _) = ls[s].as_ref()?;
-                        let (_, theta) = sub.start.as_ref()?;
-                        Some(estimate::embed(theta, ls_pairs[s].nb, ls_pairs[s].nf, &prob))
-                    })
-                    .collect();
-                (p, pair_ls(pair, p, &nested, ws))
-            })
+            .map_init(
+                || ctx.workspace(),
+                |ws, &p| {
+                    let pair = &ls_pairs[p];
+                    let prob = ctx.problem(pair);
+                    let subs: &[usize] = if ctx.solver.nested_starts { &subs[p] } else { &[] };
+                    let nested: Vec<Vec<f64>> = subs
+                        .iter()
+                        .filter_map(|&s| {
+                            let (sub, _) = ls[s].as_ref()?;
+                            let (_, theta) = sub.start.as_ref()?;
+                            Some(estimate::embed(theta, ls_pairs[s].nb, ls_pairs[s].nf, &prob))
+                        })
+                        .collect();
+                    (p, pair_ls(pair, p, &nested, ws))
+                },
+            )
             .collect();
         for (p, fit) in fitted {
             ls[p] = fit;
@@ -256,17 +270,20 @@ fn run_in_pool(
         StartStrategy::Ls => plan
             .cells()
             .par_iter()
-            .map_init(Workspace::new, |ws, &cell| {
-                if done.contains_key(&huber_key(cell)) || stopped() {
-                    return None;
-                }
-                // A pair without a fit here was skipped because of a stop.
-                let (pair_ls, _) = ls[cell.pair].as_ref()?;
-                let row = huber_cell(plan, ctx, &judge, pair_ls, cell, None, ws);
-                on_row(&row);
-                progress.inc(1);
-                Some(row)
-            })
+            .map_init(
+                || ctx.workspace(),
+                |ws, &cell| {
+                    if done.contains_key(&huber_key(cell)) || stopped() {
+                        return None;
+                    }
+                    // A pair without a fit here was skipped because of a stop.
+                    let (pair_ls, _) = ls[cell.pair].as_ref()?;
+                    let row = huber_cell(plan, ctx, &judge, pair_ls, cell, None, ws);
+                    on_row(&row);
+                    progress.inc(1);
+                    Some(row)
+                },
+            )
             .flatten()
             .collect(),
         StartStrategy::Chains => {
@@ -274,15 +291,20 @@ fn run_in_pool(
             by_cost
                 .par_iter()
                 .with_max_len(1)
-                .map_init(Workspace::new, |ws, &p| {
-                    let Some((pair_ls, _)) = &ls[p] else { return Vec::new() };
-                    let keys: Vec<bool> =
-                        order.iter().map(|&ki| done.contains_key(&huber_key(Cell { pair: p, k_index: ki }))).collect();
-                    if keys.iter().all(|&d| d) {
-                        return Vec::new();
-                    }
-                    chain_cells(plan, ctx, &judge, pair_ls, p, &order, &keys, ws, &stopped, on_row, progress)
-                })
+                .map_init(
+                    || ctx.workspace(),
+                    |ws, &p| {
+                        let Some((pair_ls, _)) = &ls[p] else { return Vec::new() };
+                        let keys: Vec<bool> = order
+                            .iter()
+                            .map(|&ki| done.contains_key(&huber_key(Cell { pair: p, k_index: ki })))
+                            .collect();
+                        if keys.iter().all(|&d| d) {
+                            return Vec::new();
+                        }
+                        chain_cells(plan, ctx, &judge, pair_ls, p, &order, &keys, ws, &stopped, on_row, progress)
+                    },
+                )
                 .flatten()
                 .collect()
         }
@@ -290,28 +312,31 @@ fn run_in_pool(
             let chain = plan.k_descending();
             (0..plan.pairs.len())
                 .into_par_iter()
-                .map_init(Workspace::new, |ws, p| {
-                    let mut out = Vec::new();
-                    let Some((pair_ls, _)) = &ls[p] else { return out };
-                    let mut prev: Option<Vec<f64>> = None;
-                    for &ki in &chain {
-                        let cell = Cell { pair: p, k_index: ki };
-                        let row = match done.get(&huber_key(cell)) {
-                            Some(row) => {
-                                prev = chain_theta(ctx, row).or(prev);
-                                continue;
-                            }
-                            None if stopped() => break,
-                            None => huber_cell(plan, ctx, &judge, pair_ls, cell, prev.as_deref(), ws),
-                        };
-                        // From the row, like a resumed chain: one path, the same bits.
-                        prev = chain_theta(ctx, &row).or(prev);
-                        on_row(&row);
-                        progress.inc(1);
-                        out.push(row);
-                    }
-                    out
-                })
+                .map_init(
+                    || ctx.workspace(),
+                    |ws, p| {
+                        let mut out = Vec::new();
+                        let Some((pair_ls, _)) = &ls[p] else { return out };
+                        let mut prev: Option<Vec<f64>> = None;
+                        for &ki in &chain {
+                            let cell = Cell { pair: p, k_index: ki };
+                            let row = match done.get(&huber_key(cell)) {
+                                Some(row) => {
+                                    prev = chain_theta(ctx, row).or(prev);
+                                    continue;
+                                }
+                                None if stopped() => break,
+                                None => huber_cell(plan, ctx, &judge, pair_ls, cell, prev.as_deref(), ws),
+                            };
+                            // From the row, like a resumed chain: one path, the same bits.
+                            prev = chain_theta(ctx, &row).or(prev);
+                            on_row(&row);
+                            progress.inc(1);
+                            out.push(row);
+                        }
+                        out
+                    },
+                )
                 .flatten()
                 .collect()
         }
@@ -340,6 +365,7 @@ fn chain_cells(
 ) -> Vec<CellRow> {
     let pair = plan.pairs[p];
     let failed = |ki: usize, reason: String| CellRow::failed(RowKey::huber(&pair, ki), Some(plan.ks[ki]), reason);
+    let span = Span::start(ctx.profile.as_deref(), Phase::Huber);
     let rows: Vec<CellRow> = match &ls.start {
         None => {
             let reason = ls.row.reason.as_deref().unwrap_or("it failed");
@@ -368,6 +394,7 @@ fn chain_cells(
                 .collect()
         }
     };
+    drop(span);
     for row in &rows {
         on_row(row);
         progress.inc(1);
@@ -397,6 +424,8 @@ fn huber_cell(
     };
     let prob = ctx.problem(&pair);
     let t = Instant::now();
+    let _span = Span::start(ctx.profile.as_deref(), Phase::Huber);
+    ws.role = Role::Other;
     let run = catch_unwind(AssertUnwindSafe(|| {
         crate::failpoint::before_cell(pair.nb, pair.nf, cell.k_index);
         // theta_LS, then the pair's extra starts; the lowest criterion wins, ties the earlier.

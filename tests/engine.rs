@@ -134,3 +134,35 @@ fn a_watched_run_stops_on_the_callers_switch_and_counts_its_cells() {
     assert_eq!(watch.done.load(Ordering::Relaxed), PAIRS * KS);
     assert!(table(&dir.path().join("out")) == expected, "the watched table differs from the uninterrupted one");
 }
+
+/// `--profile`: every minimisation is counted by its role, the counts do not depend on the
+/// thread count (each pair is one sequential task), they hold at least the iterations the table
+/// reports (the winners'), and an unprofiled run carries no profile.
+#[test]
+fn a_profiled_run_counts_every_fit_by_role() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = job(dir.path(), "prof");
+    let plain = engine::run(&job, &RunOptions { force: true, ..whole() }, &|_| {}).unwrap();
+    assert!(plain.profile.is_none());
+    let profiled = |threads| {
+        let opts = RunOptions { threads, force: true, profile: true, ..Default::default() };
+        engine::run(&job, &opts, &|_| {}).unwrap().profile.expect("asked for")
+    };
+    let (one, two) = (profiled(1), profiled(2));
+    let counts = |p: &oesweep::profile::ProfileReport| {
+        p.roles.iter().map(|r| (r.role, r.fits, r.iterations)).collect::<Vec<_>>()
+    };
+    assert_eq!(counts(&one), counts(&two));
+    let rows = table(&dir.path().join("prof"));
+    let reported: u64 = rows.iter().map(|r| u64::from(r.fit.iterations.unwrap_or(0))).sum();
+    assert!(two.iterations() >= reported, "{} < {reported}", two.iterations());
+    let role = |name: &str| two.roles.iter().find(|r| r.role == name).unwrap().clone();
+    // Every Huber cell is at least one chain fit; every pair at least one least-squares fit
+    // and one top-cell fit from theta_LS.
+    assert!(role("chain").fits >= (PAIRS * KS) as u64);
+    assert!(role("least_squares").fits >= PAIRS as u64);
+    assert!(role("top").fits >= PAIRS as u64);
+    for phase in ["least_squares_phase", "huber_phase", "evidence", "sweep", "write"] {
+        assert!(two.phases.iter().any(|p| p.phase == phase && p.seconds > 0.0), "{phase}: {two:?}");
+    }
+}

@@ -135,6 +135,10 @@ pub struct RunArgs {
     /// <output>/parts/shard-I-of-N/ and not merged (see `oesweep merge`).
     #[arg(long, value_name = "I/N")]
     pub shard: Option<Shard>,
+    /// Count solver iterations by role and time by phase; print the table and write it as
+    /// JSON to FILE.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]

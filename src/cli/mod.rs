@@ -214,6 +214,7 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         shard: a.shard,
         report: a.report,
         watch: None,
+        profile: a.profile.is_some(),
     };
     // The data's warnings are printed when the records are read; the picks' at the end.
     let printed = std::cell::RefCell::new(Vec::new());
@@ -295,6 +296,10 @@ fn run_job(a: &RunArgs) -> Result<u8> {
                 eprintln!("warning: {e}");
             }
         }
+    }
+    if let (Some(path), Some(profile)) = (&a.profile, &o.profile) {
+        eprint!("{}", profile.table());
+        crate::export::json::write_json(path, profile)?;
     }
     let code = o.exit_code();
     if let RunEnd::Merged { report, .. } = o.end {

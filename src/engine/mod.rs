@@ -18,6 +18,7 @@ use crate::estimate::{self, Problem};
 use crate::export;
 use crate::job::{self, Inputs, ValidJob};
 use crate::plan::Plan;
+use crate::profile::{Phase, Profile, ProfileReport, Span};
 use crate::progress::Progress;
 use crate::reduce::{self, ReduceOptions, Selection};
 use crate::shard::{self, Missing, Shard};
@@ -45,6 +46,8 @@ pub struct Prepared {
     pub inputs: Inputs,
     /// The spectral estimate of the estimation record and the bins of `band_hz`.
     pub spectral: Option<(SpectralEstimate, Vec<usize>)>,
+    /// Seconds the spectral estimate took (0 without `band_hz`).
+    pub spectrum_seconds: f64,
     pub plan: Plan,
 }
 
@@ -58,6 +61,7 @@ impl Prepared {
             solver: self.job.job.solver.clone(),
             levels: self.inputs.levels,
             initial_state: self.job.job.initial_state,
+            profile: None,
         }
     }
 
@@ -71,6 +75,7 @@ impl Prepared {
 pub fn prepare(path: &Path) -> Result<Prepared> {
     let job = job::load(path)?;
     let inputs = job::load_inputs(&job)?;
+    let since = std::time::Instant::now();
     let spectral = match job.job.band_hz {
         Some([lo, hi]) => {
             let s =
@@ -87,8 +92,9 @@ pub fn prepare(path: &Path) -> Result<Prepared> {
         }
         None => None,
     };
+    let spectrum_seconds = if spectral.is_some() { since.elapsed().as_secs_f64() } else { 0.0 };
     let plan = Plan::from_job(&job);
-    Ok(Prepared { job, inputs, spectral, plan })
+    Ok(Prepared { job, inputs, spectral, spectrum_seconds, plan })
 }
 
 /// How to run a job.
@@ -110,6 +116,8 @@ pub struct RunOptions {
     /// package): no signal handlers are installed, the caller stops the run through
     /// [`Watch::stop`] and reads the progress from [`Watch::done`]. None: SIGINT/SIGTERM stop it.
     pub watch: Option<Watch>,
+    /// Count solver iterations by role and time by phase ([`RunOutcome::profile`]).
+    pub profile: bool,
 }
 
 /// The progress and stop switch of a run shared with the caller ([`RunOptions::watch`]).
@@ -136,6 +144,7 @@ impl Default for RunOptions {
             shard: None,
             report: false,
             watch: None,
+            profile: false,
         }
     }
 }
@@ -215,6 +224,8 @@ pub struct RunOutcome {
     pub unsaved: Option<(usize, Error)>,
     /// The checkpoint could not be deleted after the results were written.
     pub cleanup: Option<Error>,
+    /// Where the work went, when [`RunOptions::profile`] asked.
+    pub profile: Option<ProfileReport>,
     pub end: RunEnd,
 }
 
@@ -233,7 +244,13 @@ impl RunOutcome {
 /// anything is written; `on_resume` hears what the checkpoint held before the sweep starts.
 pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> Result<RunOutcome> {
     opts.check()?;
+    let profile = opts.profile.then(|| Arc::new(Profile::default()));
+    let reading = Span::start(profile.as_deref(), Phase::Read);
     let p = prepare(job_file)?;
+    drop(reading);
+    if let Some(prof) = &profile {
+        prof.add_seconds(Phase::Spectrum, p.spectrum_seconds);
+    }
     let out = p.job.output().to_path_buf();
     let (plan, label) = match opts.shard {
         Some(s) => (shard::plan_of(&p.plan, s).0, format!("{} shard {s}", p.job.job.name)),
@@ -299,7 +316,9 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
             }
         };
         let control = sweep::Control { done: existing.rows, on_row: &on_row, stop };
-        sweep::run(&plan, &p.context(), opts.threads, &progress, control)
+        let ctx = sweep::Context { profile: profile.clone(), ..p.context() };
+        let _span = Span::start(profile.as_deref(), Phase::Sweep);
+        sweep::run(&plan, &ctx, opts.threads, &progress, control)
     };
     progress.finish();
     let saved = writer.finish();
@@ -318,8 +337,10 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
         seconds: outcome.seconds,
         unsaved: saved.error.map(|e| (saved.unsaved, e)),
         cleanup: None,
+        profile: None,
         end: RunEnd::Interrupted,
     };
+    result.profile = profile.as_ref().map(|p| p.report());
     if outcome.interrupted {
         return Ok(result);
     }
@@ -337,7 +358,10 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
 
     // A whole run: the results, then the checkpoint has served (if deleting it fails, a rerun
     // finds every cell done and merges again), then the report.
+    let writing = Span::start(profile.as_deref(), Phase::Write);
     let selection = write_results(&out, &p.job, &outcome.rows, Some(&p.inputs))?;
+    drop(writing);
+    result.profile = profile.as_ref().map(|p| p.report());
     crate::failpoint::before_checkpoint_removal();
     result.cleanup = checkpoint::remove(&out).err();
     let report = opts.report.then(|| crate::report::write_report(&out));

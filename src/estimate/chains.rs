@@ -11,6 +11,7 @@ use super::options::{SolverOptions, Termination};
 use super::problem::{Problem, Solution};
 use super::solver;
 use super::workspace::Workspace;
+use crate::profile::Role;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::Instant;
 
@@ -115,6 +116,7 @@ impl Chains {
                 continue;
             }
             let opts = if creeping { &budget } else { opts };
+            ws.role = if creeping { Role::Creep } else { Role::Chain };
             sols.push(point.as_ref().map(|p| solver::minimise(prob, loss, p, opts, ws)));
         }
         let last = sols.iter().rposition(Option::is_some);
@@ -235,6 +237,7 @@ impl ChainWalk {
             let incumbent = top.criterion;
             let t = std::time::Instant::now();
             let loss = Loss::Huber { gamma: ks[n - 1] * sigma };
+            ws.role = Role::Top;
             let cold = solver::minimise(prob, loss, theta_ls, &opts.huber(), ws);
             let warm = solver::minimise(prob, loss, theta_ls, &opts.huber_warm(), ws);
             let cold_lower = cold.usable() && (!warm.usable() || cold.criterion < warm.criterion);
@@ -265,6 +268,7 @@ impl ChainWalk {
             let incumbent = below.criterion;
             let t = std::time::Instant::now();
             let loss = Loss::Huber { gamma: ks[j - 1] * sigma };
+            ws.role = Role::Back;
             let sol = solver::minimise(prob, loss, &start, &opts, ws);
             let lower = sol.usable() && (!incumbent.is_finite() || sol.criterion < incumbent * (1.0 - Chains::MERGE));
             if lower {
@@ -362,6 +366,7 @@ pub fn walk_pair(
                 let t = Instant::now();
                 let polished = catch_unwind(AssertUnwindSafe(|| {
                     let loss = Loss::Huber { gamma: fit.k * whole.sigma };
+                    ws.role = Role::Polish;
                     let sol = solver::minimise(whole.prob, loss, &fit.theta(), &whole.opts.huber_warm(), ws);
                     huber_from_solution(whole.prob, whole.sigma, fit.k, &sol, whole.judge, ws, false)
                 }));

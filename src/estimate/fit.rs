@@ -10,6 +10,7 @@ use super::problem::{Problem, Solution};
 use super::solver;
 use super::workspace::Workspace;
 use crate::oe;
+use crate::profile::{Phase, Span};
 use crate::spectral::SpectralEstimate;
 
 /// What a fitted model is judged against besides its own estimation record.
@@ -111,6 +112,8 @@ pub struct Assessment {
 /// The assessment of the solution `theta` whose output and Jacobian signals the workspace
 /// holds (the solver's last, or [`Workspace::resimulate`]).
 fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: &Judge) -> Assessment {
+    let profile = ws.profile.clone();
+    let judging = Span::start(profile.as_deref(), Phase::Judge);
     let yhat = &ws.yhat[..];
     let (b, f, _) = prob.split(theta);
     let mut fit_val_exp = None;
@@ -124,6 +127,8 @@ fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: 
     let fit = fit_percent(prob.y, &judged);
     let fit_exp = fit_per_experiment(prob, prob.y, &judged);
     let fit_band = judge.band.and_then(|(est, bins)| crate::spectral::band_fit(est, bins, b, f, prob.delay));
+    drop(judging);
+    let _evidence = Span::start(profile.as_deref(), Phase::Evidence);
     Assessment {
         fit,
         fit_val: fit_val.filter(|v| v.is_finite()),

@@ -46,8 +46,23 @@ fn norm2(v: &[f64]) -> f64 {
 }
 
 /// Minimise `loss` over theta = [b, f] (or [b, f, c], see [`Problem::offset`]) from `theta0`.
-/// The returned F is stable.
+/// The returned F is stable. Counted in the workspace's profile under its current role.
 pub fn minimise(prob: &Problem, loss: Loss, theta0: &[f64], opts: &SolverOptions, ws: &mut Workspace) -> Solution {
+    let since = std::time::Instant::now();
+    let sol = minimise_unprofiled(prob, loss, theta0, opts, ws);
+    if let Some(p) = ws.profile() {
+        p.fit(ws.role, sol.iterations, since);
+    }
+    sol
+}
+
+fn minimise_unprofiled(
+    prob: &Problem,
+    loss: Loss,
+    theta0: &[f64],
+    opts: &SolverOptions,
+    ws: &mut Workspace,
+) -> Solution {
     let n = prob.n();
     let d = prob.dim();
     assert_eq!(theta0.len(), d);

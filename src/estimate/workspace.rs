@@ -42,11 +42,25 @@ pub struct Workspace {
     /// Criterion after each accepted step (first entry: the start), when `record_trace`.
     pub trace: Vec<f64>,
     pub record_trace: bool,
+    /// The run's counters, when it is profiled ([`crate::profile`]).
+    pub profile: Option<std::sync::Arc<crate::profile::Profile>>,
+    /// Who the next minimisations are for (counted by role in `profile`).
+    pub role: crate::profile::Role,
 }
 
 impl Workspace {
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A workspace whose fits count into `profile`.
+    pub fn profiled(profile: Option<std::sync::Arc<crate::profile::Profile>>) -> Self {
+        Workspace { profile, ..Self::default() }
+    }
+
+    /// The run's profile, if any.
+    pub fn profile(&self) -> Option<&crate::profile::Profile> {
+        self.profile.as_deref()
     }
 
     pub(super) fn prepare(&mut self, n: usize, d: usize) {

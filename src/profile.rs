@@ -1,0 +1,265 @@
+//! Where a run's work goes (`oesweep run --profile FILE`): solver iterations and fits by the
+//! role they play, and worker time by phase (docs/PERFORMANCE.md, "Where the time goes").
+//!
+//! The table's `iterations` column holds the winning fit's iterations of each cell only; the
+//! losing chains, the backward pass, the least-squares starts and the polishing of a long
+//! record are counted here. Counters are atomics shared by the workers of one run (one
+//! [`Profile`] per run, reached through each worker's [`crate::estimate::Workspace`]), so
+//! concurrent runs in one process do not mix. Times are worker seconds (summed over the
+//! threads); with T busy threads a phase's wall share is about its worker seconds / T. A run
+//! without `--profile` carries no profile and pays nothing.
+
+use serde::Serialize;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+/// The role of a minimisation (who asked for it).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Role {
+    /// The least-squares phase of a pair: its starts, the robust detour, the final fits.
+    LeastSquares,
+    /// A chain's fit in the up walk along k (winning or losing); under the `ls` and `best`
+    /// strategies, a cell's fits from the pair's least-squares starts.
+    Chain,
+    /// A losing chain's fit on the creeping budget.
+    Creep,
+    /// The backward pass walking down from a jump.
+    Back,
+    /// The top cell's fits from theta_LS (cold and warm).
+    Top,
+    /// A long record's cell polished on the whole record from its head's solution.
+    Polish,
+    /// Anything else: single fits, the warm fits of the `neighbour` and `best` strategies.
+    #[default]
+    Other,
+}
+
+impl Role {
+    pub const ALL: [Role; 7] =
+        [Role::LeastSquares, Role::Chain, Role::Creep, Role::Back, Role::Top, Role::Polish, Role::Other];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Role::LeastSquares => "least_squares",
+            Role::Chain => "chain",
+            Role::Creep => "creep",
+            Role::Back => "back",
+            Role::Top => "top",
+            Role::Polish => "polish",
+            Role::Other => "other",
+        }
+    }
+}
+
+/// Phases of worker time. The solver's time is split by [`Role`]; `Evidence` and `Judge` are
+/// inside the least-squares and Huber phases but outside the solver.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    /// Reading and checking the job and its records (wall).
+    Read,
+    /// The robust spectral estimate of the estimation record (wall, inside `Read`).
+    Spectrum,
+    /// The least-squares phase of every pair: initial guesses, solver, assessment (workers).
+    LeastSquares,
+    /// The Huber phase of every pair: chains, backward pass, assessment (workers).
+    Huber,
+    /// Covariance, residual tests and robust criteria of every reported fit (workers).
+    Evidence,
+    /// Fit %, the validation simulation and the band fit of every reported fit (workers).
+    Judge,
+    /// The sweep from its first to its last cell (wall).
+    Sweep,
+    /// Reducing to the picks and writing the result files (wall).
+    Write,
+}
+
+impl Phase {
+    pub const ALL: [Phase; 8] = [
+        Phase::Read,
+        Phase::Spectrum,
+        Phase::LeastSquares,
+        Phase::Huber,
+        Phase::Evidence,
+        Phase::Judge,
+        Phase::Sweep,
+        Phase::Write,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Phase::Read => "read",
+            Phase::Spectrum => "spectrum",
+            Phase::LeastSquares => "least_squares_phase",
+            Phase::Huber => "huber_phase",
+            Phase::Evidence => "evidence",
+            Phase::Judge => "judge",
+            Phase::Sweep => "sweep",
+            Phase::Write => "write",
+        }
+    }
+}
+
+const ROLES: usize = Role::ALL.len();
+const PHASES: usize = Phase::ALL.len();
+
+/// The counters of one run.
+#[derive(Debug, Default)]
+pub struct Profile {
+    fits: [AtomicU64; ROLES],
+    iterations: [AtomicU64; ROLES],
+    solver_nanos: [AtomicU64; ROLES],
+    phase_nanos: [AtomicU64; PHASES],
+}
+
+fn nanos(since: Instant) -> u64 {
+    since.elapsed().as_nanos().min(u64::MAX as u128) as u64
+}
+
+impl Profile {
+    /// One minimisation of `role` that took `iterations` and started at `since`.
+    pub fn fit(&self, role: Role, iterations: usize, since: Instant) {
+        let i = role as usize;
+        self.fits[i].fetch_add(1, Ordering::Relaxed);
+        self.iterations[i].fetch_add(iterations as u64, Ordering::Relaxed);
+        self.solver_nanos[i].fetch_add(nanos(since), Ordering::Relaxed);
+    }
+
+    /// `seconds` more of `phase`.
+    pub fn add_seconds(&self, phase: Phase, seconds: f64) {
+        self.phase_nanos[phase as usize].fetch_add((seconds * 1e9) as u64, Ordering::Relaxed);
+    }
+
+    /// Time of `phase` from `since` to now.
+    pub fn add(&self, phase: Phase, since: Instant) {
+        self.phase_nanos[phase as usize].fetch_add(nanos(since), Ordering::Relaxed);
+    }
+
+    /// The counters as they are now.
+    pub fn report(&self) -> ProfileReport {
+        let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        let roles = Role::ALL
+            .iter()
+            .map(|&r| {
+                let i = r as usize;
+                RoleCount {
+                    role: r.as_str(),
+                    fits: get(&self.fits[i]),
+                    iterations: get(&self.iterations[i]),
+                    solver_seconds: get(&self.solver_nanos[i]) as f64 * 1e-9,
+                }
+            })
+            .collect();
+        let phases = Phase::ALL
+            .iter()
+            .map(|&p| PhaseTime { phase: p.as_str(), seconds: get(&self.phase_nanos[p as usize]) as f64 * 1e-9 })
+            .collect();
+        ProfileReport { roles, phases }
+    }
+}
+
+/// Adds the time from its creation to its drop to a phase of an optional profile.
+pub struct Span<'a> {
+    profile: Option<&'a Profile>,
+    phase: Phase,
+    since: Instant,
+}
+
+impl<'a> Span<'a> {
+    pub fn start(profile: Option<&'a Profile>, phase: Phase) -> Self {
+        Span { profile, phase, since: Instant::now() }
+    }
+}
+
+impl Drop for Span<'_> {
+    fn drop(&mut self) {
+        if let Some(p) = self.profile {
+            p.add(self.phase, self.since);
+        }
+    }
+}
+
+/// Solver work of one role.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct RoleCount {
+    pub role: &'static str,
+    /// Minimisations run.
+    pub fits: u64,
+    /// Their iterations (normal equations built).
+    pub iterations: u64,
+    /// Worker seconds inside the solver.
+    pub solver_seconds: f64,
+}
+
+/// Time of one phase (worker seconds, or wall seconds for the phases marked so in [`Phase`]).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct PhaseTime {
+    pub phase: &'static str,
+    pub seconds: f64,
+}
+
+/// What `--profile` writes (JSON) and prints.
+#[derive(Clone, Debug, Serialize)]
+pub struct ProfileReport {
+    pub roles: Vec<RoleCount>,
+    pub phases: Vec<PhaseTime>,
+}
+
+impl ProfileReport {
+    pub fn iterations(&self) -> u64 {
+        self.roles.iter().map(|r| r.iterations).sum()
+    }
+
+    pub fn fits(&self) -> u64 {
+        self.roles.iter().map(|r| r.fits).sum()
+    }
+
+    pub fn seconds(&self, phase: Phase) -> f64 {
+        self.phases.iter().find(|p| p.phase == phase.as_str()).map_or(0.0, |p| p.seconds)
+    }
+
+    /// The report as a text table.
+    pub fn table(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::from("solver work by role:\n  role             fits  iterations  per fit  solver s\n");
+        for r in self.roles.iter().filter(|r| r.fits > 0) {
+            let per = r.iterations as f64 / r.fits as f64;
+            let _ = writeln!(
+                s,
+                "  {:<14} {:>6} {:>11} {:>8.1} {:>9.2}",
+                r.role, r.fits, r.iterations, per, r.solver_seconds
+            );
+        }
+        let (f, i) = (self.fits(), self.iterations());
+        let solver: f64 = self.roles.iter().map(|r| r.solver_seconds).sum();
+        let _ = writeln!(s, "  {:<14} {:>6} {:>11} {:>8.1} {:>9.2}", "all", f, i, i as f64 / f.max(1) as f64, solver);
+        s.push_str("time by phase (s; workers' summed for the phases inside the sweep):\n");
+        for p in &self.phases {
+            let _ = writeln!(s, "  {:<20} {:>9.3}", p.phase, p.seconds);
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_add_up_by_role_and_phase() {
+        let p = Profile::default();
+        let t = Instant::now();
+        p.fit(Role::Chain, 4, t);
+        p.fit(Role::Chain, 6, t);
+        p.fit(Role::Top, 3, t);
+        {
+            let _s = Span::start(Some(&p), Phase::Evidence);
+        }
+        let r = p.report();
+        assert_eq!(r.iterations(), 13);
+        assert_eq!(r.fits(), 3);
+        let chain = r.roles.iter().find(|c| c.role == "chain").unwrap();
+        assert_eq!((chain.fits, chain.iterations), (2, 10));
+        assert!(r.seconds(Phase::Evidence) >= 0.0);
+        assert!(r.table().contains("chain"));
+    }
+}
