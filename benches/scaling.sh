@@ -39,7 +39,7 @@ done
 for i in $(seq "$runs"); do
     for n in $ns; do
         /usr/bin/time -f "%e %M" -o "$work/t_${n}_$i" "$bin" run "$work/j$n.json" --threads "$threads" --quiet \
-            --force >/dev/null
+            --force >/dev/null 2>&1
     done
 done
 

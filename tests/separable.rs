@@ -248,3 +248,32 @@ fn walking_the_chains_on_the_head_reaches_the_whole_record_cells() {
         assert!((w - z.criterion).abs() <= 1e-9 * w, "k = {}: {w} vs {}", z.k, z.criterion);
     }
 }
+
+/// A resumed long-record pair (cells an earlier run finished are not returned) gives its other
+/// cells bit for bit as the uninterrupted walk: each cell's whole-record fit starts from the
+/// previous cell's shift, which the walk computes again for a finished cell.
+#[test]
+fn a_resumed_head_walk_gives_the_same_cells() {
+    let (u, y) = spiky(30_000, 1.0);
+    let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true, seams: &[] };
+    let (judge, mut ws) = (Judge::default(), Workspace::new());
+    let [_, head] = whole_and_head();
+    let ls = estimate::fit_ls(&prob, &judge, &head, &mut ws);
+    let ks: Vec<(usize, f64)> = (0..8).map(|i| (i, 0.05 * 40f64.powf(i as f64 / 7.0))).collect();
+    let pair = PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &head };
+    let mut walk = |done: &[bool]| {
+        let cells = walk_pair(&pair, &ls.theta(), &ls.alternatives, &ks, done, &|| false, &mut ws).unwrap();
+        cells
+            .into_iter()
+            .map(|(ki, c)| match c {
+                CellOutcome::Fit { fit, .. } => (ki, fit.theta(), fit.criterion),
+                CellOutcome::Panicked(r) => panic!("{r}"),
+            })
+            .collect::<Vec<_>>()
+    };
+    let all = walk(&[false; 8]);
+    let done = [true, false, true, true, false, false, true, false];
+    let resumed = walk(&done);
+    let expected: Vec<_> = all.into_iter().filter(|(ki, _, _)| !done[*ki]).collect();
+    assert_eq!(resumed, expected);
+}

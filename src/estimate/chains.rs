@@ -343,7 +343,8 @@ pub enum CellOutcome {
 /// from `theta_ls` and `alternatives`. On a record longer than `solver.explore_rows` the walk
 /// (chains and backward pass) runs on the record's first `explore_rows` samples
 /// ([`exploration_head`]), and each cell is then one warm fit on the whole record from the
-/// head's solution (METHOD.md 5.5): the losing chains and the backward pass cost a head's
+/// head's solution, moved by the previous cell's head-to-whole shift where that starts lower
+/// ([`polish_start`]; METHOD.md 5.5): the losing chains and the backward pass cost a head's
 /// worth per iteration. On a 131 072-sample record (`benches/long_record.sh`) every one of the
 /// 640 cells came out within 1e-6 of the whole-record walk, the same picks, for 11.8 -> 9.8 s
 /// of Huber time. The chains carry state from cell to cell that the rows
@@ -402,8 +403,13 @@ pub fn walk_pair(
     let extra = catch_unwind(AssertUnwindSafe(|| walk.walk_back(pair, &k_values, theta_ls, ws)))
         .unwrap_or_else(|_| vec![0.0; ks.len()]);
     let mut out = Vec::new();
+    // On a long record, how far the whole record's minimum lay from the head's at the previous
+    // cell (see `polish_start`); cells an earlier run finished are polished again for it when a
+    // later cell needs it, so that a resumed pair starts each cell from the same point.
+    let mut shift: Option<Vec<f64>> = None;
     for (i, (cell, panic)) in walk.cells.into_iter().zip(panics).enumerate() {
-        if done[i] {
+        let needed_later = on_head && done[i + 1..].iter().any(|d| !d);
+        if done[i] && !needed_later {
             continue;
         }
         let outcome = match cell {
@@ -411,8 +417,11 @@ pub fn walk_pair(
                 let t = Instant::now();
                 let polished = catch_unwind(AssertUnwindSafe(|| {
                     let loss = Loss::Huber { gamma: fit.k * whole.sigma };
+                    let head_theta = fit.theta();
+                    let from = polish_start(whole.prob, loss, &head_theta, shift.as_deref(), ws);
                     ws.role = Role::Polish;
-                    let sol = solver::minimise(whole.prob, loss, &fit.theta(), &whole.opts.huber_warm(), ws);
+                    let sol = solver::minimise(whole.prob, loss, &from, &whole.opts.huber_warm(), ws);
+                    shift = sol.usable().then(|| sol.theta.iter().zip(&head_theta).map(|(a, b)| a - b).collect());
                     huber_from_solution(whole.prob, whole.sigma, fit.k, &sol, whole.judge, ws, false)
                 }));
                 let seconds = seconds[i] + extra[i] + t.elapsed().as_secs_f64();
@@ -424,9 +433,29 @@ pub fn walk_pair(
             Some((fit, start)) => CellOutcome::Fit { fit: Box::new(fit), start, seconds: seconds[i] + extra[i] },
             None => CellOutcome::Panicked(panic.unwrap_or_else(|| "Huber fit panicked".into())),
         };
-        out.push((ks[i].0, outcome));
+        if !done[i] {
+            out.push((ks[i].0, outcome));
+        }
     }
     Some(out)
+}
+
+/// Where a long record's cell is minimised on the whole record: from the head's solution
+/// `head_theta`, or from it moved by `shift` (the whole record's minimum minus the head's at the
+/// previous cell: the two differ by the head's sampling error, which changes little from one k
+/// to the next) when that has a stable F and a lower criterion (one simulation of each on the
+/// whole record).
+fn polish_start(prob: &Problem, loss: Loss, head_theta: &[f64], shift: Option<&[f64]>, ws: &mut Workspace) -> Vec<f64> {
+    let Some(shift) = shift else { return head_theta.to_vec() };
+    let mut moved: Vec<f64> = head_theta.iter().zip(shift).map(|(a, s)| a + s).collect();
+    if !crate::oe::is_stable(prob.f_mut(&mut moved)) {
+        return head_theta.to_vec();
+    }
+    ws.trial_yhat.resize(prob.n(), 0.0);
+    prob.simulate(&moved, &mut ws.trial_yhat);
+    let at_moved = loss.criterion(prob.y, &ws.trial_yhat);
+    prob.simulate(head_theta, &mut ws.trial_yhat);
+    if at_moved < loss.criterion(prob.y, &ws.trial_yhat) { moved } else { head_theta.to_vec() }
 }
 
 /// The message of a caught panic.
