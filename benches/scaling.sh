@@ -26,7 +26,7 @@ trap 'rm -rf "$work"' EXIT
 
 for n in $ns; do
     "$bin" simulate --system "$root/jobs/data/piezo_system.json" --out "$work/r$n.csv" --n "$n" --seed 7 \
-        --noise-std 0.02 --outlier-prob 0.05 --outlier-range 1,3 >/dev/null
+        --noise-std 0.02 --outlier-prob 0.05 --outlier-range 1,3 >/dev/null 2>&1
     est=$((n * 3 / 4))
     cat >"$work/j$n.json" <<JOB
 {"name": "scaling-$n", "data": {"path": "$work/r$n.csv", "ts": 1e-4, "rows": [1, $est]},

@@ -460,6 +460,41 @@ fn chi2_sf(q: f64, dof: usize) -> f64 {
 mod tests {
     use super::*;
 
+    /// The QR path (taken when the formed Gram matrix is ill-conditioned) inverts the same
+    /// matrix as the Cholesky path, also on a record of several experiments with an offset:
+    /// its Jacobian rows have no lag across a seam, as the summed normal equations have not
+    /// (which `tests/experiments.rs` checks against an explicit Jacobian).
+    #[test]
+    fn the_qr_inverse_is_the_cholesky_inverse_across_seams() {
+        let n = 3000;
+        let mut s = 7u64;
+        let u: Vec<f64> = (0..n)
+            .map(|_| {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect();
+        let y = vec![0.0; n];
+        for seams in [vec![], vec![700, 2100]] {
+            let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: true, seams: &seams };
+            let (b, f) = ([1.0, 0.5], [-0.6, 0.2]);
+            let (mut xu, mut yh, mut xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            prob.simulate_filtered(&b, &f, &mut xu, &mut yh, &mut xy);
+            let d = prob.dim();
+            let (mut h, mut g, r) = (vec![0.0; d * d], vec![0.0; d], vec![0.0; n]);
+            NormalEquations::default().build_all(&prob.layout(), true, &seams, &xu, &xy, None, &r, &mut h, &mut g);
+            let scale: Vec<f64> = (0..d).map(|i| h[i * d + i].sqrt()).collect();
+            let a = faer::Mat::<f64>::from_fn(d, d, |i, j| h[i * d + j] / (scale[i] * scale[j]));
+            let chol = a.llt(faer::Side::Lower).expect("well conditioned").inverse();
+            let qr = qr_inverse(&prob, &xu, &xy, &scale, &mut Vec::new()).expect("full rank");
+            let big = (0..d * d).map(|ij| chol[(ij / d, ij % d)].abs()).fold(0.0, f64::max);
+            for ij in 0..d * d {
+                let (c, q) = (chol[(ij / d, ij % d)], qr[ij]);
+                assert!((c - q).abs() <= 1e-9 * big, "seams {seams:?}, entry {ij}: {c} vs {q}");
+            }
+        }
+    }
+
     /// The gradient of |G| in theta against central differences: with a covariance that has
     /// one parameter's variance only, the reported std is |d|G|/dtheta_i| times its std.
     #[test]
