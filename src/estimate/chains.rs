@@ -99,15 +99,14 @@ impl Chains {
     /// The secant predictor of continuation methods (Allgower and Georg 1990, ch. 2): chain
     /// `i`'s minimum at log k extrapolated linearly from its minima at the two previous steps,
     /// `theta + (theta - theta_before) (log k - log k_1) / (log k_1 - log k_0)`. None (start at
-    /// the point itself) unless the chain was fitted at both previous steps, or when the
-    /// extrapolated F is not stable. [`Chains::step`] starts from it only when its criterion is
-    /// below the point's (one simulation each). On the paper grid (issue 30, `run --profile`):
+    /// the point itself) unless the chain was fitted at both previous steps. [`Chains::step`]
+    /// starts from it only when [`lower_start`] says so. On the paper grid (issue 30, `run --profile`):
     /// the chains' iterations 56 943 -> 45 335, all minimisations' 104 825 -> 92 081; 3522 of
     /// 3840 cells within a relative 1e-6 of the walk without it, 16 higher and 17 lower by more
     /// than 1e-4 (the chains reach other basins, both ways); the same picks; against the scipy
     /// peer's 8-k grid 761/768 Huber cells no worse either way. Unguarded, 18 609 instead of
     /// 17 827 reported iterations on that grid and the same count against the peer.
-    fn predict(&self, i: usize, step: usize, log_k: f64, prob: &Problem) -> Option<Vec<f64>> {
+    fn predict(&self, i: usize, step: usize, log_k: f64) -> Option<Vec<f64>> {
         let point = self.points[i].as_ref()?;
         let (s1, lk1) = self.found[i]?;
         let (s0, lk0, before) = self.before[i].as_ref()?;
@@ -115,8 +114,7 @@ impl Chains {
             return None;
         }
         let t = (log_k - lk1) / (lk1 - lk0);
-        let mut out: Vec<f64> = point.iter().zip(before).map(|(p, b)| p + t * (p - b)).collect();
-        crate::oe::is_stable(prob.f_mut(&mut out)).then_some(out)
+        Some(point.iter().zip(before).map(|(p, b)| p + t * (p - b)).collect())
     }
 
     /// The cell at tuning constant `k` (larger than at the previous call): one fit per live
@@ -147,18 +145,10 @@ impl Chains {
             }
             let opts = if creeping { &budget } else { opts };
             ws.role = if creeping { Role::Creep } else { Role::Chain };
-            let predicted = if creeping { None } else { self.predict(i, step, log_k, prob) };
-            // The prediction only where it starts lower than the point itself.
-            let predicted = predicted.filter(|pred| {
-                point.as_deref().is_some_and(|p| {
-                    let n = prob.n();
-                    ws.trial_yhat.resize(n, 0.0);
-                    prob.simulate(pred, &mut ws.trial_yhat);
-                    let at_pred = loss.criterion(prob.y, &ws.trial_yhat);
-                    prob.simulate(p, &mut ws.trial_yhat);
-                    at_pred < loss.criterion(prob.y, &ws.trial_yhat)
-                })
-            });
+            let predicted = match (creeping, point) {
+                (false, Some(p)) => self.predict(i, step, log_k).and_then(|c| lower_start(prob, loss, c, p, ws)),
+                _ => None,
+            };
             let start = predicted.as_deref().or(point.as_deref());
             sols.push(start.map(|p| solver::minimise(prob, loss, p, opts, ws)));
         }
@@ -443,19 +433,33 @@ pub fn walk_pair(
 /// Where a long record's cell is minimised on the whole record: from the head's solution
 /// `head_theta`, or from it moved by `shift` (the whole record's minimum minus the head's at the
 /// previous cell: the two differ by the head's sampling error, which changes little from one k
-/// to the next) when that has a stable F and a lower criterion (one simulation of each on the
-/// whole record).
+/// to the next) when [`lower_start`] says so.
 fn polish_start(prob: &Problem, loss: Loss, head_theta: &[f64], shift: Option<&[f64]>, ws: &mut Workspace) -> Vec<f64> {
-    let Some(shift) = shift else { return head_theta.to_vec() };
-    let mut moved: Vec<f64> = head_theta.iter().zip(shift).map(|(a, s)| a + s).collect();
-    if !crate::oe::is_stable(prob.f_mut(&mut moved)) {
-        return head_theta.to_vec();
+    shift
+        .and_then(|s| lower_start(prob, loss, head_theta.iter().zip(s).map(|(a, s)| a + s).collect(), head_theta, ws))
+        .unwrap_or_else(|| head_theta.to_vec())
+}
+
+/// The rule of both predictors (`Chains::predict`, [`polish_start`]): a predicted start
+/// `candidate` replaces the plain one, `point`, only when its F is stable and its criterion
+/// lower (one simulation of each into the workspace's trial output; the solver's buffers are
+/// untouched). A prediction can overshoot where the minimum's path bends; the point is then
+/// the better start.
+fn lower_start(
+    prob: &Problem,
+    loss: Loss,
+    mut candidate: Vec<f64>,
+    point: &[f64],
+    ws: &mut Workspace,
+) -> Option<Vec<f64>> {
+    if !crate::oe::is_stable(prob.f_mut(&mut candidate)) {
+        return None;
     }
     ws.trial_yhat.resize(prob.n(), 0.0);
-    prob.simulate(&moved, &mut ws.trial_yhat);
-    let at_moved = loss.criterion(prob.y, &ws.trial_yhat);
-    prob.simulate(head_theta, &mut ws.trial_yhat);
-    if at_moved < loss.criterion(prob.y, &ws.trial_yhat) { moved } else { head_theta.to_vec() }
+    prob.simulate(&candidate, &mut ws.trial_yhat);
+    let at_candidate = loss.criterion(prob.y, &ws.trial_yhat);
+    prob.simulate(point, &mut ws.trial_yhat);
+    (at_candidate < loss.criterion(prob.y, &ws.trial_yhat)).then_some(candidate)
 }
 
 /// The message of a caught panic.
