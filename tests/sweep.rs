@@ -145,3 +145,36 @@ fn a_larger_model_never_fits_worse_in_least_squares() {
         assert!(*c <= independent[pair], "{pair:?}: {c} nested, {} independent", independent[pair]);
     }
 }
+
+/// `run --profile FILE` prints the table and writes the JSON (every role with its fits and
+/// iterations, every phase); a FILE in a folder that does not exist is refused before the run
+/// (exit 2, nothing written).
+#[test]
+fn run_profile_writes_the_breakdown_or_refuses_a_missing_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = setup(dir.path(), "prof", "chains");
+    let bad = dir.path().join("no/such/folder/p.json");
+    let o = oesweep(&["run", job.to_str().unwrap(), "--quiet", "--profile", bad.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("--profile") && err.contains("does not exist"), "{err}");
+    assert!(!dir.path().join("prof").exists(), "nothing is written");
+
+    let file = dir.path().join("profile.json");
+    let o = oesweep(&["run", job.to_str().unwrap(), "--quiet", "--profile", file.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("solver work by role") && err.contains("time by phase"), "{err}");
+    let p: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    let roles = p["roles"].as_array().unwrap();
+    let count = |role: &str, key: &str| {
+        roles.iter().find(|r| r["role"] == role).and_then(|r| r[key].as_u64()).unwrap_or_else(|| panic!("{role}"))
+    };
+    // 12 pairs x 3 k: every cell at least one chain fit, every pair a least-squares phase.
+    assert!(count("chain", "fits") >= 36 && count("least_squares", "fits") >= 12, "{p}");
+    assert!(count("chain", "iterations") > 0);
+    let phases: Vec<&str> = p["phases"].as_array().unwrap().iter().map(|x| x["phase"].as_str().unwrap()).collect();
+    for want in ["read", "spectrum", "least_squares_phase", "huber_phase", "evidence", "judge", "sweep", "write"] {
+        assert!(phases.contains(&want), "{phases:?}");
+    }
+}

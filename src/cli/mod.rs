@@ -206,6 +206,17 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
 
 /// `oesweep run` ([`engine::run`]).
 fn run_job(a: &RunArgs) -> Result<u8> {
+    // Checked before the run, which may take hours: the file is written after it.
+    if let Some(path) = &a.profile {
+        let folder = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
+        if !folder.is_dir() {
+            return Err(Error::Invalid(format!(
+                "--profile {}: the folder {} does not exist",
+                path.display(),
+                folder.display()
+            )));
+        }
+    }
     let opts = RunOptions {
         threads: a.threads,
         quiet: a.quiet,
