@@ -4,14 +4,7 @@
 # Needs python3 with venv and the Python package registry; under CI=true nothing may skip.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/oesweep-target}"
-venv="$(mktemp -d)/venv"
-trap 'rm -rf "$(dirname "$venv")"' EXIT
-python3 -m venv "$venv"
-"$venv/bin/pip" install --quiet --upgrade pip
-"$venv/bin/pip" install --quiet numpy scipy polars pytest control
-# The package as a user installs it (maturin builds the native module in release).
-"$venv/bin/pip" install --quiet ./python
+source python/venv.sh numpy scipy polars pytest control
 cargo build --release --quiet
 # Run from outside the source tree so the installed package, not python/oesweep, is imported.
 cd "$(dirname "$venv")"
