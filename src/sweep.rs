@@ -6,7 +6,7 @@
 //! ([`estimate::chains::walk_pair`]) and runs in parallel over pairs; `ls` makes every cell
 //! independent and runs in parallel over cells; `neighbour`/`best` walk each pair from the
 //! largest k down, in parallel over pairs. Each task is sequential and deterministic, so the
-//! table does not depend on the thread count. One [`Workspace`] per worker (`map_init`). A
+//! table does not depend on the thread count. One [`Workspace`] per worker ([`Workspaces`]). A
 //! panic inside a fit is caught and becomes a failed row; the sweep goes on.
 //!
 //! Resuming ([`Control`]): rows finished by an earlier run of the same job are not computed
@@ -32,8 +32,8 @@ use crate::table::{CellRow, RowKey, sort_rows};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// Everything a cell needs besides its orders and k.
@@ -52,11 +52,6 @@ pub struct Context<'a> {
 }
 
 impl Context<'_> {
-    /// A worker's workspace, counting into the run's profile.
-    fn workspace(&self) -> Workspace {
-        Workspace::profiled(self.profile.clone())
-    }
-
     fn judge(&self) -> Judge<'_> {
         Judge {
             validation: self.val.map(|v| (&v.u[..], &v.y[..])),
@@ -87,6 +82,32 @@ impl Context<'_> {
     fn with_offset(&self, mut row: CellRow) -> CellRow {
         row.fit.offset = self.levels.offset(row.fit.offset);
         row
+    }
+}
+
+/// The workers' [`Workspace`]s, kept across tasks: a task takes one (made the first time, counting
+/// into the run's profile) and gives it back, so there are as many as tasks ever ran at once.
+/// rayon's `map_init` makes one per split, and with a task per pair that was a fresh workspace
+/// per pair: its record-length buffers touched and zeroed anew each time (on a 131 072-sample
+/// record, page faults and zeroing were 8 % of the run). A workspace's contents never reach a
+/// result (every buffer is written before it is read), so which one a task gets does not matter.
+struct Workspaces {
+    profile: Option<Arc<Profile>>,
+    free: Mutex<Vec<Workspace>>,
+}
+
+impl Workspaces {
+    fn new(ctx: &Context) -> Self {
+        Workspaces { profile: ctx.profile.clone(), free: Mutex::new(Vec::new()) }
+    }
+
+    /// `task` with a workspace of its own for its duration (one lost when the task panics).
+    fn with<R>(&self, task: impl FnOnce(&mut Workspace) -> R) -> R {
+        let taken = self.free.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        let mut ws = taken.unwrap_or_else(|| Workspace::profiled(self.profile.clone()));
+        let out = task(&mut ws);
+        self.free.lock().unwrap_or_else(|e| e.into_inner()).push(ws);
+        out
     }
 }
 
@@ -185,6 +206,7 @@ fn run_in_pool(
     stop: &AtomicBool,
 ) -> Vec<CellRow> {
     let judge = ctx.judge();
+    let workspaces = Workspaces::new(ctx);
     let stopped = || stop.load(Ordering::Relaxed);
     let huber_key = |cell: Cell| RowKey::huber(&plan.pairs[cell.pair], cell.k_index);
     progress.message("least-squares phase");
@@ -240,9 +262,8 @@ fn run_in_pool(
         let fitted: Vec<(usize, Option<(PairLs, bool)>)> = wave
             .par_iter()
             .with_max_len(1)
-            .map_init(
-                || ctx.workspace(),
-                |ws, &p| {
+            .map(|&p| {
+                workspaces.with(|ws| {
                     let pair = &ls_pairs[p];
                     let prob = ctx.problem(pair);
                     let subs: &[usize] = if ctx.solver.nested_starts { &subs[p] } else { &[] };
@@ -255,8 +276,8 @@ fn run_in_pool(
                         })
                         .collect();
                     (p, pair_ls(pair, p, &nested, ws))
-                },
-            )
+                })
+            })
             .collect();
         for (p, fit) in fitted {
             ls[p] = fit;
@@ -270,9 +291,8 @@ fn run_in_pool(
         StartStrategy::Ls => plan
             .cells()
             .par_iter()
-            .map_init(
-                || ctx.workspace(),
-                |ws, &cell| {
+            .map(|&cell| {
+                workspaces.with(|ws| {
                     if done.contains_key(&huber_key(cell)) || stopped() {
                         return None;
                     }
@@ -282,8 +302,8 @@ fn run_in_pool(
                     on_row(&row);
                     progress.inc(1);
                     Some(row)
-                },
-            )
+                })
+            })
             .flatten()
             .collect(),
         StartStrategy::Chains => {
@@ -291,9 +311,8 @@ fn run_in_pool(
             by_cost
                 .par_iter()
                 .with_max_len(1)
-                .map_init(
-                    || ctx.workspace(),
-                    |ws, &p| {
+                .map(|&p| {
+                    workspaces.with(|ws| {
                         let Some((pair_ls, _)) = &ls[p] else { return Vec::new() };
                         let keys: Vec<bool> = order
                             .iter()
@@ -303,8 +322,8 @@ fn run_in_pool(
                             return Vec::new();
                         }
                         chain_cells(plan, ctx, &judge, pair_ls, p, &order, &keys, ws, &stopped, on_row, progress)
-                    },
-                )
+                    })
+                })
                 .flatten()
                 .collect()
         }
@@ -312,9 +331,8 @@ fn run_in_pool(
             let chain = plan.k_descending();
             (0..plan.pairs.len())
                 .into_par_iter()
-                .map_init(
-                    || ctx.workspace(),
-                    |ws, p| {
+                .map(|p| {
+                    workspaces.with(|ws| {
                         let mut out = Vec::new();
                         let Some((pair_ls, _)) = &ls[p] else { return out };
                         let mut prev: Option<Vec<f64>> = None;
@@ -335,8 +353,8 @@ fn run_in_pool(
                             out.push(row);
                         }
                         out
-                    },
-                )
+                    })
+                })
                 .flatten()
                 .collect()
         }
