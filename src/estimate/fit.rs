@@ -28,19 +28,24 @@ pub struct Judge<'a> {
 }
 
 impl Judge<'_> {
-    /// The output the model is judged by on a record (u, y): its simulation from zero initial
-    /// conditions (`yhat0`, offset included), plus the fitted free response with
-    /// [`InitialState::Estimate`].
-    pub fn judged_output(&self, prob: &Problem, theta: &[f64], y: &[f64], yhat0: Vec<f64>) -> Vec<f64> {
-        let mut yhat = yhat0;
+    /// The output the model is judged by on a record (u, y), in place: `yhat` holds its
+    /// simulation from zero initial conditions (offset included), to which the fitted free
+    /// response is added with [`InitialState::Estimate`] (`s`: its buffers).
+    pub fn judge_output(
+        &self,
+        prob: &Problem,
+        theta: &[f64],
+        y: &[f64],
+        yhat: &mut [f64],
+        s: &mut initial_state::Scratch,
+    ) {
         if self.initial_state == InitialState::Estimate {
             let (b, f, _) = prob.split(theta);
             // One initial state per experiment.
             for e in prob.experiments() {
-                initial_state::add_free_response(f, b.len(), prob.delay, &y[e.clone()], &mut yhat[e]);
+                initial_state::add_free_response_in(f, b.len(), prob.delay, &y[e.clone()], &mut yhat[e], s);
             }
         }
-        yhat
     }
 }
 
@@ -114,18 +119,22 @@ pub struct Assessment {
 fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: &Judge) -> Assessment {
     let profile = ws.profile.clone();
     let judging = Span::start(profile.as_deref(), Phase::Judge);
-    let yhat = &ws.yhat[..];
     let (b, f, _) = prob.split(theta);
     let mut fit_val_exp = None;
     let fit_val = judge.validation.map(|(u, y)| {
         let val = Problem { u, y, seams: judge.validation_seams, ..*prob };
-        let judged = judge.judged_output(&val, theta, y, val.simulate_vec(theta));
-        fit_val_exp = fit_per_experiment(&val, y, &judged);
-        fit_percent(y, &judged)
+        let judged = &mut ws.judged_val;
+        judged.resize(u.len(), 0.0);
+        val.simulate(theta, judged);
+        judge.judge_output(&val, theta, y, judged, &mut ws.free_response);
+        fit_val_exp = fit_per_experiment(&val, y, judged);
+        fit_percent(y, judged)
     });
-    let judged = judge.judged_output(prob, theta, prob.y, yhat.to_vec());
-    let fit = fit_percent(prob.y, &judged);
-    let fit_exp = fit_per_experiment(prob, prob.y, &judged);
+    ws.judged.clear();
+    ws.judged.extend_from_slice(&ws.yhat);
+    judge.judge_output(prob, theta, prob.y, &mut ws.judged, &mut ws.free_response);
+    let fit = fit_percent(prob.y, &ws.judged);
+    let fit_exp = fit_per_experiment(prob, prob.y, &ws.judged);
     let fit_band = judge.band.and_then(|(est, bins)| crate::spectral::band_fit(est, bins, b, f, prob.delay));
     drop(judging);
     let _evidence = Span::start(profile.as_deref(), Phase::Evidence);

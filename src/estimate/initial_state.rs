@@ -69,22 +69,59 @@ pub fn model_output(
 /// the free response of the initial state that fits `y` best, in place. `f` and `delay`, `nb`
 /// are the model's denominator, delay and numerator length.
 pub fn add_free_response(f: &[f64], nb: usize, delay: usize, y: &[f64], yhat: &mut [f64]) {
+    add_free_response_in(f, nb, delay, y, yhat, &mut Scratch::default())
+}
+
+/// Buffers of [`add_free_response_in`], one per worker: the impulse response of 1/F and the
+/// residual, each only as long as the impulse response takes to decay (not the record).
+#[derive(Default, Debug)]
+pub struct Scratch {
+    h: Vec<f64>,
+    r: Vec<f64>,
+}
+
+/// Length of the first stretch of the impulse response computed; each further stretch doubles
+/// it (see [`impulse_response`]).
+const FIRST_STRETCH: usize = 4096;
+
+/// The impulse response of 1/F into `h`, cut where it has decayed below rounding of its peak
+/// (1e-16 of it; at least one sample); None when it is not finite. Computed on a prefix of the
+/// record that doubles until its last quarter is all below that level: the recursion is causal,
+/// so every sample is the one a whole-record pass gives, and a lightly damped F decays within
+/// a few thousand samples, where the whole record may be a million.
+fn impulse_response(f: &[f64], n_obs: usize, h: &mut Vec<f64>) -> Option<usize> {
+    let mut m = FIRST_STRETCH.min(n_obs);
+    loop {
+        h.clear();
+        h.resize(m, 0.0);
+        h[0] = 1.0;
+        oe::inv_f_in_place(f, h);
+        if h.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let peak = h.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let len = h.iter().rposition(|v| v.abs() > 1e-16 * peak).map_or(1, |i| i + 1);
+        if m == n_obs || len <= m - m / 4 {
+            return Some(len);
+        }
+        m = (2 * m).min(n_obs);
+    }
+}
+
+/// [`add_free_response`] with its buffers in `s`.
+pub fn add_free_response_in(f: &[f64], nb: usize, delay: usize, y: &[f64], yhat: &mut [f64], s: &mut Scratch) {
     let n_obs = y.len();
     let n = f.len().max((nb + delay).saturating_sub(1)).min(n_obs);
     if n == 0 {
         return;
     }
-    // Impulse response of 1/F, cut where it has decayed below rounding of its peak.
-    let mut h = vec![0.0; n_obs];
-    h[0] = 1.0;
-    oe::inv_f_in_place(f, &mut h);
-    if h.iter().any(|v| !v.is_finite()) {
-        return;
-    }
-    let peak = h.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let len = h.iter().rposition(|v| v.abs() > 1e-16 * peak).map_or(1, |i| i + 1);
-    let h = &h[..len];
-    let r: Vec<f64> = y.iter().zip(yhat.iter()).map(|(a, b)| a - b).collect();
+    let Some(len) = impulse_response(f, n_obs, &mut s.h) else { return };
+    let h = &s.h[..len];
+    // The residual where the basis reaches: the first n - 1 + len samples.
+    let reach = (n - 1 + len).min(n_obs);
+    s.r.clear();
+    s.r.extend(y[..reach].iter().zip(&yhat[..reach]).map(|(a, b)| a - b));
+    let r = &s.r;
     // rhs_j = sum_t h[t - j] r[t];  G_ij = sum_{s <= N-1-max(i,j)} h[s] h[s + |i-j|], which is
     // the lag's full product R(lag) = sum_{s < len - lag} h[s] h[s + lag] less at most j end
     // terms where the record ends before h has decayed (vectorised dot products: O(n L)).

@@ -14,8 +14,8 @@ use super::problem::{Problem, output_filtered};
 ///   fixed 512 rows, not N;
 /// - the evidence ([`super::evidence::Scratch`]): the robust residuals, their centred copy,
 ///   the centred input and the input it was computed from (4);
-/// - while a fit is judged, its outputs with the fitted free response on the estimation and
-///   validation records (3-4, freed after the fit);
+/// - a fit's judged outputs on the estimation and validation records (2; the fitted free
+///   response's impulse response and residual are as long as the response takes to decay);
 /// - the initial guesses stream the regressions in 256-row blocks and simulate one instrument
 ///   vector.
 ///
@@ -39,6 +39,11 @@ pub struct Workspace {
     pub(super) ne: NormalEquations,
     pub(super) inner: super::separable::Inner,
     pub(crate) evidence: super::evidence::Scratch,
+    /// A fit's judged outputs on the estimation and validation records, and the buffers of
+    /// their fitted free response ([`super::initial_state::Scratch`]).
+    pub(super) judged: Vec<f64>,
+    pub(super) judged_val: Vec<f64>,
+    pub(super) free_response: super::initial_state::Scratch,
     /// Criterion after each accepted step (first entry: the start), when `record_trace`.
     pub trace: Vec<f64>,
     pub record_trace: bool,
