@@ -41,7 +41,12 @@ pub fn fit_ls_nested(
             let found = ls_minima(&head, opts, nested, ws);
             let (best, others) = ranked(&found);
             let others: Vec<Vec<f64>> = others.iter().map(|s| s.theta.clone()).collect();
-            (vec![solver::minimise(prob, Loss::LeastSquares, &best.theta, opts, ws)], Some(others))
+            // Warm, as the cells' whole-record fits from the head's minima: the head's best is
+            // near the whole record's minimum (64 such fits on a 131 072-sample record: 897 ->
+            // 491 iterations, every criterion within a relative 5e-10).
+            let warm = SolverOptions { lambda0: opts.warm_lambda0, ..opts.clone() };
+            let w = solver::minimise(prob, Loss::LeastSquares, &best.theta, &warm, ws);
+            (vec![w], Some(others))
         }
         None => (ls_minima(prob, opts, nested, ws), None),
     };

@@ -43,7 +43,9 @@ pub struct SolverOptions {
     /// from the minimum at the neighbouring k. That start is within ~1e-6 (relative W) of the
     /// new minimum, and `lambda0` there costs 10-20 iterations of creeping along the
     /// ill-conditioned directions of OE models while lambda decays; near Gauss-Newton steps
-    /// converge in 2-5 (measured on the paper grid: 89 k to 41 k warm iterations).
+    /// converge in 2-5 (measured on the paper grid: 89 k to 41 k warm iterations). A long
+    /// record's whole-record fits from its head's minima start as near and take it too
+    /// (METHOD.md 5.5).
     pub warm_lambda0: f64,
     /// Huber Hessian weighting.
     pub huber_hessian: HuberHessian,
