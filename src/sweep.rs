@@ -58,6 +58,7 @@ impl Context<'_> {
             validation_seams: self.val.map_or(&[][..], |v| &v.seams[..]),
             band: self.band,
             initial_state: self.initial_state,
+            criterion_only: false,
         }
     }
 

@@ -159,9 +159,8 @@ fn huber_beats_least_squares_with_outliers_and_invariants_hold() {
     let prob = Problem { u: &d.u, y: &d.y, nb: 10, nf: 10, delay: 1, offset: false, seams: &[] };
     let judge = Judge {
         validation: Some((&d.uv, &d.yv0)),
-        validation_seams: &[],
-        band: None,
         initial_state: oesweep::estimate::InitialState::Zero,
+        ..Judge::default()
     };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();

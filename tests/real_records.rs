@@ -151,7 +151,7 @@ fn initial_state_makes_a_short_tail_judge_the_model() {
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let judged = |initial_state| {
-        let judge = Judge { validation: Some((uv, yv)), validation_seams: &[], band: None, initial_state };
+        let judge = Judge { validation: Some((uv, yv)), initial_state, ..Judge::default() };
         estimate::fit_ls_from(&prob, &[b.clone(), f.clone()].concat(), &judge, &opts, &mut Workspace::new())
             .assessment
             .fit_val

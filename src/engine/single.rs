@@ -189,6 +189,7 @@ fn fit_records(
         validation_seams: val.as_ref().map_or(&[][..], |v| &v.seams[..]),
         band: spec.as_ref().map(|(s, bins)| (s, &bins[..])),
         initial_state: req.initial_state,
+        criterion_only: false,
     };
     let prob = Problem {
         u: &est.u,

@@ -359,7 +359,7 @@ pub fn walk_pair(
     let whole = pair;
     let head = exploration_head(pair.prob, pair.opts);
     let on_head = head.is_some();
-    let head_judge = Judge::default();
+    let head_judge = Judge { criterion_only: true, ..Judge::default() };
     let head_pair = head.as_ref().map(|prob| PairProblem { prob, judge: &head_judge, ..*pair });
     let pair = head_pair.as_ref().unwrap_or(pair);
     let mut chains = Chains::new(theta_ls, alternatives);

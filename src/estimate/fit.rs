@@ -25,6 +25,11 @@ pub struct Judge<'a> {
     pub band: Option<(&'a SpectralEstimate, &'a [usize])>,
     /// The initial state `fit` and `fit_val` are computed with.
     pub initial_state: InitialState,
+    /// Fits only for their criterion: a long record's walk on its head, whose every cell is
+    /// fitted again on the whole record (METHOD.md 5.5) and judged there. Such a fit carries no
+    /// assessment, L1C or robust criteria (NaN and None), and never becomes a row; judging it
+    /// was 6 % of a long-record run (the evidence, fit % and criteria of the head's fits).
+    pub criterion_only: bool,
 }
 
 impl Judge<'_> {
@@ -112,6 +117,21 @@ pub struct Assessment {
     /// Parameter standard deviations and residual tests (METHOD.md 10).
     #[serde(flatten)]
     pub evidence: evidence::Evidence,
+}
+
+impl Assessment {
+    /// The assessment of a fit that is not judged ([`Judge::criterion_only`]).
+    fn unjudged(f: &[f64]) -> Self {
+        Assessment {
+            fit: f64::NAN,
+            fit_val: None,
+            fit_band: None,
+            fit_exp: None,
+            fit_val_exp: None,
+            max_pole_radius: oe::max_pole_radius(f),
+            evidence: evidence::Evidence::default(),
+        }
+    }
 }
 
 /// The assessment of the solution `theta` whose output and Jacobian signals the workspace
@@ -249,10 +269,26 @@ pub(crate) fn huber_from_solution(
     resimulate: bool,
 ) -> HuberFit {
     let gamma = k * sigma;
+    let (b, f, _) = prob.split(&sol.theta);
+    if judge.criterion_only {
+        return HuberFit {
+            k,
+            gamma,
+            criterion: sol.criterion,
+            l1c: f64::NAN,
+            assessment: Assessment::unjudged(f),
+            iterations: sol.iterations,
+            termination: sol.termination,
+            reflections: sol.reflections,
+            b: b.to_vec(),
+            f: f.to_vec(),
+            offset: prob.offset.then(|| prob.split(&sol.theta).2),
+            criteria: super::criteria::Robust { raic: f64::NAN, rbic: f64::NAN },
+        };
+    }
     if resimulate {
         ws.resimulate(prob, &sol.theta);
     }
-    let (b, f, _) = prob.split(&sol.theta);
     HuberFit {
         k,
         gamma,

@@ -191,6 +191,29 @@ fn solve_ridged(g: &[f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
 mod tests {
     use super::*;
 
+    /// The impulse response computed on doubling prefixes is the whole-record one, cut at the
+    /// same sample, for a quickly and a slowly decaying F (the second needs several doublings).
+    #[test]
+    fn impulse_response_is_the_whole_records_cut() {
+        for radius in [0.9, 0.9995] {
+            let f = oe::poly_from_roots(&[
+                (radius * 0.2f64.cos(), radius * 0.2f64.sin()),
+                (radius * 0.2f64.cos(), -radius * 0.2f64.sin()),
+            ]);
+            let n_obs = 200_000;
+            let mut whole = vec![0.0; n_obs];
+            whole[0] = 1.0;
+            oe::inv_f_in_place(&f, &mut whole);
+            let peak = whole.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let want = whole.iter().rposition(|v| v.abs() > 1e-16 * peak).unwrap() + 1;
+            let mut h = Vec::new();
+            let len = impulse_response(&f, n_obs, &mut h).unwrap();
+            assert_eq!(len, want, "radius {radius}");
+            assert!(len > FIRST_STRETCH || radius < 0.99, "radius {radius}: {len}");
+            assert_eq!(&h[..len], &whole[..len]);
+        }
+    }
+
     /// The tail of a record simulated from zero is the full model's output; judged from zero
     /// on the tail alone it is wrong at the start, with the fitted state it is exact.
     #[test]
