@@ -11,8 +11,9 @@
 //! 1e-4 (METHOD.md 8: local minima differ in the 5th digit):
 //! - `chains` (default, the sweep's default start strategy): the pair's k values are those of
 //!   the paper grid (40, log-spaced over [0.05, 2]) plus the peer's, expressed in oesweep's
-//!   sigma (k = gamma_peer / sigma), walked in increasing order by [`estimate::Chains`] and
-//!   back by [`estimate::ChainWalk::walk_back`], as the sweep does;
+//!   sigma (k = gamma_peer / sigma), walked by the sweep's [`estimate::chains::walk_pair`]
+//!   (the chains up, the backward pass, and on a record four times `solver.explore_rows` the
+//!   walk on its head with each cell refitted on the whole record);
 //! - `ls`: every peer cell on its own from theta_LS and each extra start.
 //!
 //! Prints the share of cells where oesweep is no worse, the worst cases, and the work done.
@@ -145,20 +146,21 @@ fn main() {
                 let mut ks: Vec<(f64, Option<usize>)> = paper_ks().into_iter().map(|k| (k, None)).collect();
                 ks.extend(peer_cells.iter().enumerate().map(|(i, &(gamma, _))| (gamma / ls.sigma, Some(i))));
                 ks.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let mut chains = estimate::Chains::new(&ls.theta(), &ls.alternatives);
-                let mut walk = estimate::ChainWalk::default();
+                // The sweep's walk of the pair (`walk_pair`: the chains up, the backward pass
+                // and, on a record four times `solver.explore_rows`, the walk on its head with
+                // each cell refitted on the whole record).
                 let pair = estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &opts };
-                for &(k, _) in &ks {
-                    let (h, which) = chains.step(&pair, k, ws);
-                    iterations += h.iterations;
-                    walk.cells.push(Some((h, estimate::StartKind::Chain { start: which })));
-                }
-                // The sweep's backward pass over the pair (see `ChainWalk`).
-                let grid: Vec<f64> = ks.iter().map(|&(k, _)| k).collect();
-                walk.walk_back(&pair, &grid, &ls.theta(), ws);
-                for (cell, &(_, peer)) in walk.cells.iter().zip(&ks) {
-                    if let (Some((h, _)), Some(i)) = (cell, peer) {
-                        ours[i] = h.criterion;
+                let walk_ks: Vec<(usize, f64)> = ks.iter().enumerate().map(|(i, &(k, _))| (i, k)).collect();
+                let done = vec![false; ks.len()];
+                let cells =
+                    estimate::chains::walk_pair(&pair, &ls.theta(), &ls.alternatives, &walk_ks, &done, &|| false, ws)
+                        .expect("never stopped");
+                for (i, cell) in cells {
+                    if let estimate::chains::CellOutcome::Fit { fit, .. } = cell {
+                        iterations += fit.iterations;
+                        if let Some(p) = ks[i].1 {
+                            ours[p] = fit.criterion;
+                        }
                     }
                 }
             }

@@ -284,7 +284,8 @@ fn bad_lists_name_the_record() {
 /// A list job over two experiments and a validation list of two.
 fn list_job(dir: &Path, out: &str) -> PathBuf {
     if !dir.join("e0.csv").exists() {
-        for (i, (n, seed)) in [(900, 1), (700, 2)].into_iter().enumerate() {
+        // 4000 samples: a record at least `HEAD_SHARE` heads long explores on its head.
+        for (i, (n, seed)) in [(900, 1), (3100, 2)].into_iter().enumerate() {
             let u = binary_input(n, 3, 1.0, seed);
             write_csv(&dir.join(format!("e{i}.csv")), &u, &experiment(&u, 0.05, seed + 10));
             let uv = binary_input(500, 3, 1.0, seed + 20);

@@ -186,7 +186,7 @@ fn whole_and_head() -> [SolverOptions; 2] {
     [0, 4096].map(|explore_rows| SolverOptions { explore_rows, ..SolverOptions::default() })
 }
 
-/// A record longer than `solver.explore_rows` explores its least-squares starts on its head and
+/// A record four times `solver.explore_rows` explores its least-squares starts on its head and
 /// minimises the best on the whole record: on a long record with spikes it reaches the
 /// minima of the whole-record exploration (least squares and the Huber cells from its starts).
 #[test]
@@ -210,7 +210,7 @@ fn exploring_the_starts_on_the_head_reaches_the_whole_record_minima() {
     }
 }
 
-/// On a record longer than `solver.explore_rows` the chains walk on its head and each cell is
+/// On a record four times `solver.explore_rows` the chains walk on its head and each cell is
 /// then fitted on the whole record from there: every cell reaches the whole-record walk's
 /// minimum (or a lower one), and is a fit of the whole record.
 #[test]

@@ -330,7 +330,7 @@ pub enum CellOutcome {
 }
 
 /// The whole Huber phase of one pair: its cells at `ks` (k index, k), in increasing k, chains
-/// from `theta_ls` and `alternatives`. On a record longer than `solver.explore_rows` the walk
+/// from `theta_ls` and `alternatives`. On a record at least four times `solver.explore_rows` long the walk
 /// (chains and backward pass) runs on the record's first `explore_rows` samples
 /// ([`exploration_head`]), and each cell is then one warm fit on the whole record from the
 /// head's solution, moved by the previous cell's head-to-whole shift where that starts lower

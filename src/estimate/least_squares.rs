@@ -12,11 +12,11 @@ use super::workspace::Workspace;
 /// Steps 1-2: least-squares prediction-error fit from each initial guess (ARX, IV); the
 /// lowest criterion wins (ties: the first).
 ///
-/// On a record longer than `opts.explore_rows` the starts are explored on its first
-/// `explore_rows` samples (every start and detour of [`ls_minima`]), and only the best of those
-/// minima is then minimised on the whole record, from where it ended; the runners-up become
-/// Huber starts as they are: the exploration is most of the least-squares phase, and its cost
-/// then stops growing with N (METHOD.md 5.2, step 5).
+/// On a record at least [`HEAD_SHARE`] times `opts.explore_rows` long the starts are explored
+/// on its first `explore_rows` samples (every start and detour of [`ls_minima`]), and only the
+/// best of those minima is then minimised on the whole record, from where it ended, with the
+/// nested starts; the runners-up become Huber starts as they are: the exploration is most of
+/// the least-squares phase, and its cost then stops growing with N (METHOD.md 5.2, step 5).
 pub fn fit_ls(prob: &Problem, judge: &Judge, opts: &SolverOptions, ws: &mut Workspace) -> LsFit {
     fit_ls_nested(prob, judge, opts, &[], ws)
 }
@@ -32,23 +32,41 @@ pub fn fit_ls_nested(
     nested: &[Vec<f64>],
     ws: &mut Workspace,
 ) -> LsFit {
-    // On a long record only the head's best minimum is minimised again on the whole record; the
+    // On a long record the starts of the pair itself (guesses, detours) are explored on the
+    // head, and only the head's best minimum is minimised again on the whole record; the
     // runners-up are Huber starts as the head left them (the chains walk on the head anyway).
     // Minimising them too on the whole record never changed theta_LS or a cell (two
     // 131 072-sample records: all 704 criteria the same to 1e-6) and cost 11-14 % of the run.
+    // The nested starts are minimised on the whole record itself, warm: they are the
+    // sub-models' whole-record minima, so the pair's fit stays no worse than its sub-models'.
+    // Explored on the head with the rest, they lost that: on a 65 536-sample record with
+    // spikes (paper grid, 16 384-row head) 75 of 96 least-squares fits and 758 of 768 Huber
+    // cells were no worse than the scipy peer's; minimised on the whole record 94 and 768
+    // (cold) and 96 and 768 (warm).
     let (sols, head_others) = match exploration_head(prob, opts) {
         Some(head) => {
-            let found = ls_minima(&head, opts, nested, ws);
+            let found = ls_minima(&head, opts, nested.is_empty(), ws);
             let (best, others) = ranked(&found);
             let others: Vec<Vec<f64>> = others.iter().map(|s| s.theta.clone()).collect();
             // Warm, as the cells' whole-record fits from the head's minima: the head's best is
             // near the whole record's minimum (64 such fits on a 131 072-sample record: 897 ->
-            // 491 iterations, every criterion within a relative 5e-10).
+            // 491 iterations, every criterion within a relative 5e-10), and a nested start is
+            // at a minimum of the sub-model.
             let warm = SolverOptions { lambda0: opts.warm_lambda0, ..opts.clone() };
-            let w = solver::minimise(prob, Loss::LeastSquares, &best.theta, &warm, ws);
-            (vec![w], Some(others))
+            let mut whole = vec![solver::minimise(prob, Loss::LeastSquares, &best.theta, &warm, ws)];
+            whole.extend(nested.iter().map(|start| solver::minimise(prob, Loss::LeastSquares, start, &warm, ws)));
+            (whole, Some(others))
         }
-        None => (ls_minima(prob, opts, nested, ws), None),
+        None => {
+            let mut sols = ls_minima(prob, opts, nested.is_empty(), ws);
+            // The sub-models' minima, last, so that the detours start where they did without
+            // them. At high orders the per-pair starts often end in a local minimum worse than
+            // a sub-model's (on the paper grid, in 46 of 172 neighbouring pairs the larger
+            // model's criterion was higher, by up to 0.5 %; the scipy peer's fits show the
+            // same, 44 of 172).
+            sols.extend(nested.iter().map(|start| solver::minimise(prob, Loss::LeastSquares, start, opts, ws)));
+            (sols, None)
+        }
     };
     let (best, others) = ranked(&sols);
     let others = head_others.unwrap_or_else(|| others.iter().map(|s| s.theta.clone()).collect());
@@ -70,12 +88,23 @@ pub fn fit_ls_nested(
     fit
 }
 
-/// The first `solver.explore_rows` samples of a record longer than that, where the starts are
-/// explored (METHOD.md 5.2 step 5, 5.5); None when the whole record is explored.
+/// The first `solver.explore_rows` samples of a record at least [`HEAD_SHARE`] times longer,
+/// where the starts are explored (METHOD.md 5.2 step 5, 5.5); None when the whole record is
+/// explored.
 pub fn exploration_head<'a>(prob: &Problem<'a>, opts: &SolverOptions) -> Option<Problem<'a>> {
     let rows = opts.explore_rows;
-    (rows > 0 && prob.n() > rows).then(|| prob.head(rows))
+    (rows > 0 && prob.n() >= HEAD_SHARE * rows).then(|| prob.head(rows))
 }
+
+/// A record explores on a head only when it is at least this many heads long. Exploring on
+/// the head trades quality for time: its minima rank the starts as the head's data do, not as
+/// the whole record's. Against the scipy peer on the paper grid (96 pairs x 8 k, 5 % spikes
+/// of 20-60; `examples/compare_peer_grid.rs`), heads of two thirds of the record fell short
+/// of the project's bars (98 % of the least-squares fits, 99 % of the Huber cells no worse)
+/// for a third less exploration: 24 576 samples on a 16 384-row head 90/96 and 759/768
+/// (explored whole 96 and 768), 12 288 on an 8 192-row head 96 and 759 (whole 96 and 762);
+/// 65 536 samples on a 16 384-row head, a quarter, 96 and 768 (METHOD.md 5.2 step 5).
+pub const HEAD_SHARE: usize = 4;
 
 /// The lowest usable solution (ties: the first) and the others that are usable and distinct
 /// from it (relative [`DISTINCT`] in the criterion), in increasing criterion: the runner-up
@@ -101,19 +130,18 @@ fn ranked(sols: &[Solution]) -> (&Solution, Vec<&Solution>) {
     (top, others)
 }
 
-/// Every least-squares minimisation of the phase: from each initial guess (ARX, IV), from the
-/// robust detours, and from each `nested` start.
+/// The least-squares minimisations of the pair's own starts: from each initial guess (ARX, IV)
+/// and from the robust detours (the nested starts are the caller's).
 ///
-/// Without nested starts each guess also runs with heavy initial damping. With them that run
-/// no longer pays (issue 19, commit 1b1b605): on the paper grid it was never the only run to
-/// reach a pair's minimum, and dropping it kept the quality against the scipy peer (L2 96/96
-/// on both records; Huber 760 and 763 of 768 against 761 and 762) for 2 fewer minimisations
-/// per pair. (Dropping the first detour too saved as much again but left 8 of the paper
-/// grid's 96 least-squares fits higher than before, by up to 0.22 %, against 21 lower.) A
+/// A pair without sub-models (`alone`) also runs each guess with heavy initial damping. With
+/// them that run no longer pays (issue 19, commit 1b1b605): on the paper grid it was never the
+/// only run to reach a pair's minimum, and dropping it kept the quality against the scipy peer
+/// (L2 96/96 on both records; Huber 760 and 763 of 768 against 761 and 762) for 2 fewer
+/// minimisations per pair. (Dropping the first detour too saved as much again but left 8 of the
+/// paper grid's 96 least-squares fits higher than before, by up to 0.22 %, against 21 lower.) A
 /// pair without sub-models (`oesweep fit`, a grid's smallest pair) keeps it: on noise-free
 /// OE(2,2) data the OE(6,6) fit needs these starts to reach the exact fit.
-fn ls_minima(prob: &Problem, opts: &SolverOptions, nested: &[Vec<f64>], ws: &mut Workspace) -> Vec<Solution> {
-    let alone = nested.is_empty();
+fn ls_minima(prob: &Problem, opts: &SolverOptions, alone: bool, ws: &mut Workspace) -> Vec<Solution> {
     let guesses = initial_guess::initial_guesses(prob);
     // Each guess also with heavy initial damping (gradient-like first steps, as a trust-region
     // solver takes), which often ends in another, lower minimum.
@@ -137,13 +165,6 @@ fn ls_minima(prob: &Problem, opts: &SolverOptions, nested: &[Vec<f64>], ws: &mut
                 sols.push(solver::minimise(prob, Loss::LeastSquares, &robust.theta, opts, ws));
             }
         }
-    }
-    // The sub-models' minima, last, so that the detours start where they did without them.
-    // At high orders the per-pair starts above often end in a local minimum worse than a
-    // sub-model's (on the paper grid, in 46 of 172 neighbouring pairs the larger model's
-    // criterion was higher, by up to 0.5 %; the scipy peer's fits show the same, 44 of 172).
-    for start in nested {
-        sols.push(solver::minimise(prob, Loss::LeastSquares, start, opts, ws));
     }
     sols
 }

@@ -59,9 +59,9 @@ pub struct SolverOptions {
     pub huber_extra_starts: usize,
     /// Full Levenberg-Marquardt or variable projection.
     pub method: SolverMethod,
-    /// Records longer than this explore the least-squares starts on their first
-    /// `explore_rows` samples and minimise only the best few on the whole record
-    /// ([`super::fit_ls`]); 0 = explore on the whole record.
+    /// Records at least [`super::least_squares::HEAD_SHARE`] times longer explore the
+    /// least-squares starts on their first `explore_rows` samples and minimise only the best on
+    /// the whole record ([`super::fit_ls`]); 0 = explore on the whole record.
     pub explore_rows: usize,
     /// The sweep's least-squares phase also starts each pair from its sub-models' solutions,
     /// (nB - 1, nF) and (nB, nF - 1) (METHOD.md 5.2, step 2): pairs are then fitted in waves
