@@ -277,3 +277,43 @@ fn a_resumed_head_walk_gives_the_same_cells() {
     let expected: Vec<_> = all.into_iter().filter(|(ki, _, _)| !done[*ki]).collect();
     assert_eq!(resumed, expected);
 }
+
+/// On a record explored on its head the nested starts are minimised on the whole record, so a
+/// pair's least-squares criterion is never above its sub-models' (METHOD.md 5.2 steps 2 and 5).
+/// Explored on the head with the rest (before ba7b1b8), 9 of these 64 pairs were above.
+#[test]
+fn a_head_explored_record_keeps_larger_models_no_worse_than_their_sub_models() {
+    use oesweep::table::FitKind;
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("rec.csv");
+    let noise = Noise { amplitude: 10.0, std: 0.1, spike_probability: 0.05, spike_range: "20,60" };
+    simulate(&piezo_system(), &data, 8000, 5, &noise);
+    let job = serde_json::json!({
+        "name": "nested-on-head", "data": {"path": data, "ts": 1e-4}, "offset": "none", "initial_state": "zero",
+        "grid": {"nb": [1, 8], "nf": [1, 8], "k": [1.0]},
+        // 8000 samples are at least four heads of 1000: the starts are explored on the head.
+        "solver": {"explore_rows": 1000},
+        "output": dir.path().join("out"),
+    });
+    let path = dir.path().join("job.json");
+    std::fs::write(&path, job.to_string()).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .args(["run", path.to_str().unwrap(), "--threads", "2", "--quiet"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = oesweep::export::parquet::read_cells(&dir.path().join("out/cells.parquet")).unwrap();
+    let ls: std::collections::HashMap<(u32, u32), f64> = rows
+        .iter()
+        .filter(|r| r.key.kind == FitKind::Ls)
+        .map(|r| ((r.key.nb, r.key.nf), r.fit.criterion.expect("every fit usable")))
+        .collect();
+    assert_eq!(ls.len(), 64);
+    for (&(nb, nf), &v) in &ls {
+        for sub in [(nb - 1, nf), (nb, nf - 1)] {
+            if let Some(&s) = ls.get(&sub) {
+                assert!(v <= s * (1.0 + 1e-9), "OE({nb},{nf}) {v} is above its sub-model OE{sub:?} {s}");
+            }
+        }
+    }
+}
