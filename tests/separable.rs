@@ -147,6 +147,17 @@ fn separable_and_full_levenberg_marquardt_agree() {
 }
 
 /// The job field: a sweep with `solver.method = "separable"` runs and says so in job.json.
+/// `oesweep run` of `job` (written to `dir/job.json`) on 2 threads; it must succeed.
+fn run_job(dir: &std::path::Path, job: &serde_json::Value) {
+    let path = dir.join("job.json");
+    std::fs::write(&path, job.to_string()).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .args(["run", path.to_str().unwrap(), "--threads", "2", "--quiet"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 #[test]
 fn a_job_selects_the_separable_solver() {
     let dir = tempfile::tempdir().unwrap();
@@ -164,13 +175,7 @@ fn a_job_selects_the_separable_solver() {
         "solver": {"method": "separable"},
         "output": dir.path().join("out"),
     });
-    let path = dir.path().join("job.json");
-    std::fs::write(&path, job.to_string()).unwrap();
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
-        .args(["run", path.to_str().unwrap(), "--threads", "2", "--quiet"])
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    run_job(dir.path(), &job);
     let written: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/job.json")).unwrap()).unwrap();
     assert_eq!(written["solver"]["method"], "separable");
@@ -295,13 +300,7 @@ fn a_head_explored_record_keeps_larger_models_no_worse_than_their_sub_models() {
         "solver": {"explore_rows": 1000},
         "output": dir.path().join("out"),
     });
-    let path = dir.path().join("job.json");
-    std::fs::write(&path, job.to_string()).unwrap();
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
-        .args(["run", path.to_str().unwrap(), "--threads", "2", "--quiet"])
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    run_job(dir.path(), &job);
     let rows = oesweep::export::parquet::read_cells(&dir.path().join("out/cells.parquet")).unwrap();
     let ls: std::collections::HashMap<(u32, u32), f64> = rows
         .iter()

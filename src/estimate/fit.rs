@@ -269,39 +269,32 @@ pub(crate) fn huber_from_solution(
     resimulate: bool,
 ) -> HuberFit {
     let gamma = k * sigma;
-    let (b, f, _) = prob.split(&sol.theta);
-    if judge.criterion_only {
-        return HuberFit {
-            k,
-            gamma,
-            criterion: sol.criterion,
-            l1c: f64::NAN,
-            assessment: Assessment::unjudged(f),
-            iterations: sol.iterations,
-            termination: sol.termination,
-            reflections: sol.reflections,
-            b: b.to_vec(),
-            f: f.to_vec(),
-            offset: prob.offset.then(|| prob.split(&sol.theta).2),
-            criteria: super::criteria::Robust { raic: f64::NAN, rbic: f64::NAN },
-        };
-    }
-    if resimulate {
-        ws.resimulate(prob, &sol.theta);
-    }
+    let (b, f, c) = prob.split(&sol.theta);
+    let (l1c, assessment, criteria) = if judge.criterion_only {
+        (f64::NAN, Assessment::unjudged(f), super::criteria::Robust { raic: f64::NAN, rbic: f64::NAN })
+    } else {
+        if resimulate {
+            ws.resimulate(prob, &sol.theta);
+        }
+        (
+            huber::l1_contribution(prob.y, ws.yhat(), gamma),
+            assess(prob, &sol.theta, Loss::Huber { gamma }, ws, judge),
+            super::criteria::robust(prob.y, ws.yhat(), gamma, prob.dim()),
+        )
+    };
     HuberFit {
         k,
         gamma,
         criterion: sol.criterion,
-        l1c: huber::l1_contribution(prob.y, ws.yhat(), gamma),
-        assessment: assess(prob, &sol.theta, Loss::Huber { gamma }, ws, judge),
+        l1c,
+        assessment,
         iterations: sol.iterations,
         termination: sol.termination,
         reflections: sol.reflections,
         b: b.to_vec(),
         f: f.to_vec(),
-        offset: prob.offset.then(|| prob.split(&sol.theta).2),
-        criteria: super::criteria::robust(prob.y, ws.yhat(), gamma, prob.dim()),
+        offset: prob.offset.then_some(c),
+        criteria,
     }
 }
 
