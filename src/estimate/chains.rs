@@ -333,7 +333,7 @@ pub enum CellOutcome {
 /// from `theta_ls` and `alternatives`. On a record at least four times `solver.explore_rows` long the walk
 /// (chains and backward pass) runs on the record's first `explore_rows` samples
 /// ([`exploration_head`]), and each cell is then one warm fit on the whole record from the
-/// head's solution, moved by the previous cell's head-to-whole shift where that starts lower
+/// head's solution, moved by the previous cell's head-to-whole shift where that keeps F stable
 /// ([`polish_start`]; METHOD.md 5.5): the losing chains and the backward pass cost a head's
 /// worth per iteration. On a 131 072-sample record (`benches/long_record.sh`) every one of the
 /// 640 cells came out within 1e-6 of the whole-record walk, the same picks, for 11.8 -> 9.8 s

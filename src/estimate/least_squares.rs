@@ -43,31 +43,25 @@ pub fn fit_ls_nested(
     // spikes (paper grid, 16 384-row head) 75 of 96 least-squares fits and 758 of 768 Huber
     // cells were no worse than the scipy peer's; minimised on the whole record 94 and 768
     // (cold) and 96 and 768 (warm).
-    let (sols, head_others) = match exploration_head(prob, opts) {
+    // Both warm, as the cells' whole-record fits from the head's minima: the head's best is near the
+    // whole record's minimum (64 such fits on a 131 072-sample record: 897 -> 491 iterations,
+    // every criterion within a relative 5e-10), and a nested start is at a minimum of the
+    // sub-model.
+    let warm = SolverOptions { lambda0: opts.warm_lambda0, ..opts.clone() };
+    let (mut sols, head_others, nested_opts) = match exploration_head(prob, opts) {
         Some(head) => {
             let found = ls_minima(&head, opts, nested.is_empty(), ws);
             let (best, others) = ranked(&found);
             let others: Vec<Vec<f64>> = others.iter().map(|s| s.theta.clone()).collect();
-            // Warm, as the cells' whole-record fits from the head's minima: the head's best is
-            // near the whole record's minimum (64 such fits on a 131 072-sample record: 897 ->
-            // 491 iterations, every criterion within a relative 5e-10), and a nested start is
-            // at a minimum of the sub-model.
-            let warm = SolverOptions { lambda0: opts.warm_lambda0, ..opts.clone() };
-            let mut whole = vec![solver::minimise(prob, Loss::LeastSquares, &best.theta, &warm, ws)];
-            whole.extend(nested.iter().map(|start| solver::minimise(prob, Loss::LeastSquares, start, &warm, ws)));
-            (whole, Some(others))
+            (vec![solver::minimise(prob, Loss::LeastSquares, &best.theta, &warm, ws)], Some(others), &warm)
         }
-        None => {
-            let mut sols = ls_minima(prob, opts, nested.is_empty(), ws);
-            // The sub-models' minima, last, so that the detours start where they did without
-            // them. At high orders the per-pair starts often end in a local minimum worse than
-            // a sub-model's (on the paper grid, in 46 of 172 neighbouring pairs the larger
-            // model's criterion was higher, by up to 0.5 %; the scipy peer's fits show the
-            // same, 44 of 172).
-            sols.extend(nested.iter().map(|start| solver::minimise(prob, Loss::LeastSquares, start, opts, ws)));
-            (sols, None)
-        }
+        None => (ls_minima(prob, opts, nested.is_empty(), ws), None, opts),
     };
+    // The sub-models' minima, last, so that the detours start where they did without them. At
+    // high orders the per-pair starts often end in a local minimum worse than a sub-model's (on
+    // the paper grid, in 46 of 172 neighbouring pairs the larger model's criterion was higher,
+    // by up to 0.5 %; the scipy peer's fits show the same, 44 of 172).
+    sols.extend(nested.iter().map(|start| solver::minimise(prob, Loss::LeastSquares, start, nested_opts, ws)));
     let (best, others) = ranked(&sols);
     let others = head_others.unwrap_or_else(|| others.iter().map(|s| s.theta.clone()).collect());
     let mut alternatives: Vec<Vec<f64>> = others.into_iter().take(opts.huber_extra_starts).collect();
