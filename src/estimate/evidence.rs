@@ -423,14 +423,15 @@ fn independence_p(e: &[f64], seams: &[usize], u: &[f64], ruu: &[f64]) -> f64 {
 /// autocorrelation of the residuals `r` at lags 0..=[`MAX_LAG`] and their cross-correlation
 /// with the input, `sum_t r_t u_{t-k} / sqrt(sum r^2 sum u^2)`, at lags 0..=MAX_LAG (means
 /// removed). Under the tests' null hypotheses each is within `2.58 / sqrt(N)` with
-/// probability 0.99 (for the cross-correlation, when the residuals are white).
-pub fn correlation_functions(r: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
+/// probability 0.99 (for the cross-correlation, when the residuals are white). The lagged
+/// products stay within each experiment (`seams` as in [`Problem::seams`]), as the tests' own.
+pub fn correlation_functions(r: &[f64], u: &[f64], seams: &[usize]) -> (Vec<f64>, Vec<f64>) {
     let m = MAX_LAG.min(r.len().saturating_sub(2));
     let (e, u) = (centred(r), centred(u));
     let (mut ree, mut ruu, mut reu) = (vec![0.0; m + 1], vec![0.0; 1], vec![0.0; m + 1]);
-    kernels::lagged_dots(&e, &e, &mut ree);
+    lagged_dots_within(&e, &e, seams, &mut ree);
     kernels::lagged_dots(&u, &u, &mut ruu);
-    kernels::lagged_dots(&u, &e, &mut reu);
+    lagged_dots_within(&u, &e, seams, &mut reu);
     let norm = (ree[0] * ruu[0]).sqrt();
     (ree.iter().map(|v| v / ree[0]).collect(), reu.iter().map(|v| v / norm).collect())
 }
@@ -459,6 +460,40 @@ fn chi2_sf(q: f64, dof: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The report's correlation functions are the residual tests' ones: no lagged product
+    /// pairs samples of two experiments (checked against the sum over pairs written out).
+    #[test]
+    fn correlation_functions_keep_lags_within_experiments() {
+        let n = 900;
+        let u: Vec<f64> = (0..n).map(|t| ((t * 37 % 23) as f64 - 11.0) * 0.1).collect();
+        // Residuals that repeat the input one sample later: every cross-correlation lag but 1
+        // is small, and lag 1 across a seam would pair two experiments' samples.
+        let r: Vec<f64> =
+            (0..n).map(|t| if t == 0 { 0.0 } else { u[t - 1] } + ((t * 11 % 7) as f64 - 3.0) * 0.01).collect();
+        let seams = [300, 650];
+        let (acf, ccf) = correlation_functions(&r, &u, &seams);
+        let centred = |x: &[f64]| {
+            let m = x.iter().sum::<f64>() / x.len() as f64;
+            x.iter().map(|v| v - m).collect::<Vec<f64>>()
+        };
+        let (e, uc) = (centred(&r), centred(&u));
+        let experiment = |t: usize| seams.iter().filter(|&&s| s <= t).count();
+        let within = |a: &[f64], b: &[f64], lag: usize| {
+            (0..n - lag).filter(|&s| experiment(s) == experiment(s + lag)).map(|s| a[s] * b[s + lag]).sum::<f64>()
+        };
+        let (ee0, uu0) = (within(&e, &e, 0), within(&uc, &uc, 0));
+        assert_eq!(acf.len(), MAX_LAG + 1);
+        for lag in 0..=MAX_LAG {
+            let want_acf = within(&e, &e, lag) / ee0;
+            let want_ccf = within(&uc, &e, lag) / (ee0 * uu0).sqrt();
+            assert!((acf[lag] - want_acf).abs() <= 1e-12, "acf lag {lag}: {} vs {want_acf}", acf[lag]);
+            assert!((ccf[lag] - want_ccf).abs() <= 1e-12, "ccf lag {lag}: {} vs {want_ccf}", ccf[lag]);
+        }
+        // Across the seams the answer differs: the test above can tell the two apart.
+        let (_, ccf_joined) = correlation_functions(&r, &u, &[]);
+        assert!((ccf_joined[1] - ccf[1]).abs() > 1e-6);
+    }
 
     /// The QR path (taken when the formed Gram matrix is ill-conditioned) inverts the same
     /// matrix as the Cholesky path, also on a record of several experiments with an offset:
