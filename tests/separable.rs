@@ -215,6 +215,25 @@ fn exploring_the_starts_on_the_head_reaches_the_whole_record_minima() {
     }
 }
 
+/// The cells `walk_pair` fits for the k not `done`, as (k index, fit); a panicked cell fails
+/// the test.
+fn walked_cells(
+    pair: &PairProblem,
+    ls: &estimate::LsFit,
+    ks: &[(usize, f64)],
+    done: &[bool],
+    ws: &mut Workspace,
+) -> Vec<(usize, estimate::HuberFit)> {
+    let cells = walk_pair(pair, &ls.theta(), &ls.alternatives, ks, done, &|| false, ws).unwrap();
+    cells
+        .into_iter()
+        .map(|(ki, c)| match c {
+            CellOutcome::Fit { fit, .. } => (ki, *fit),
+            CellOutcome::Panicked(r) => panic!("{r}"),
+        })
+        .collect()
+}
+
 /// On a record four times `solver.explore_rows` the chains walk on its head and each cell is
 /// then fitted on the whole record from there: every cell reaches the whole-record walk's
 /// minimum (or a lower one), and is a fit of the whole record.
@@ -229,17 +248,10 @@ fn walking_the_chains_on_the_head_reaches_the_whole_record_cells() {
     let done = vec![false; ks.len()];
     let mut walk = |opts: &SolverOptions| {
         let pair = PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts };
-        let cells = walk_pair(&pair, &ls.theta(), &ls.alternatives, &ks, &done, &|| false, &mut ws).unwrap();
-        cells
-            .into_iter()
-            .map(|(_, c)| match c {
-                CellOutcome::Fit { fit, .. } => *fit,
-                CellOutcome::Panicked(r) => panic!("{r}"),
-            })
-            .collect::<Vec<_>>()
+        walked_cells(&pair, &ls, &ks, &done, &mut ws)
     };
     let (a, b) = (walk(&whole), walk(&head));
-    for (x, z) in a.iter().zip(&b) {
+    for ((_, x), (_, z)) in a.iter().zip(&b) {
         assert!(
             z.criterion <= x.criterion * (1.0 + 1e-6),
             "k = {}: {} on the head, {} whole",
@@ -267,14 +279,8 @@ fn a_resumed_head_walk_gives_the_same_cells() {
     let ks: Vec<(usize, f64)> = (0..8).map(|i| (i, 0.05 * 40f64.powf(i as f64 / 7.0))).collect();
     let pair = PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &head };
     let mut walk = |done: &[bool]| {
-        let cells = walk_pair(&pair, &ls.theta(), &ls.alternatives, &ks, done, &|| false, &mut ws).unwrap();
-        cells
-            .into_iter()
-            .map(|(ki, c)| match c {
-                CellOutcome::Fit { fit, .. } => (ki, fit.theta(), fit.criterion),
-                CellOutcome::Panicked(r) => panic!("{r}"),
-            })
-            .collect::<Vec<_>>()
+        let cells = walked_cells(&pair, &ls, &ks, done, &mut ws);
+        cells.into_iter().map(|(ki, fit)| (ki, fit.theta(), fit.criterion)).collect::<Vec<_>>()
     };
     let all = walk(&[false; 8]);
     let done = [true, false, true, true, false, false, true, false];
