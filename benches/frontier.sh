@@ -76,7 +76,7 @@ quality() {
         python3 "$peer" --est "$est" --val "$val" \
             --grid nb=7..14 nf=4..15 k=0.05,0.0625,0.0875,0.15,0.3,0.6,1.0,2.0 --jobs 1 --out "$grid" >/dev/null 2>&1
     fi
-    "$ex/compare_peer_grid" "$est" "$grid" 2>&1 | tail -3
+    "$ex/compare_peer_grid" "$est" "$grid" 2>&1 | tail -4
 }
 echo "== 4. quality against the peer (bundled record)"
 quality "$root/jobs/data/piezo_est.csv" "$root/jobs/data/piezo_val.csv" "${PEER_GRID:-$work/peer_grid.jsonl}"

@@ -43,5 +43,5 @@ for n in $ns; do
         mv "$grid.part" "$grid"
     fi
     echo "== N = $n (seed $s)"
-    "$compare" "$est" "$grid" | tail -3
+    "$compare" "$est" "$grid" | tail -4
 done

@@ -91,7 +91,7 @@ print(f"ratio peer / ours: {rng(ratios, '{:.1f}')}x")
 print(f"(peer extrapolated to 8 k per pair, 2 processes: {rng(peer8, '{:.1f}')} s)")
 PY
 echo "== quality on the sample (the peer's first run; relative 1e-4, the sweep's chains)"
-"$CARGO_TARGET_DIR/release/examples/compare_peer_grid" "$est" "$work/peer_1.jsonl" 2>&1 | tail -4
+"$CARGO_TARGET_DIR/release/examples/compare_peer_grid" "$est" "$work/peer_1.jsonl" 2>&1 | tail -5
 echo "== where the time goes (the last run's --profile; worker seconds summed over 2 threads)"
 python3 - "$work/profile_$runs.json" "$work/pg/cells.parquet" <<'PY'
 import json, sys
