@@ -22,6 +22,8 @@
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+# shellcheck source=benches/common.sh
+source "$root/benches/common.sh"
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/oesweep-target}
 peer=${PEER:-$root/../shared/peer/peer.py}
 runs=${RUNS:-3}
@@ -72,10 +74,7 @@ bash "$root/benches/long_record.sh" "$method" 2>&1 | grep long_record
 
 quality() {
     local est=$1 val=$2 grid=$3
-    if [[ ! -s $grid ]]; then
-        python3 "$peer" --est "$est" --val "$val" \
-            --grid nb=7..14 nf=4..15 k=0.05,0.0625,0.0875,0.15,0.3,0.6,1.0,2.0 --jobs 1 --out "$grid" >/dev/null 2>&1
-    fi
+    peer_grid "$peer" "$est" "$val" "$grid"
     "$ex/compare_peer_grid" "$est" "$grid" 2>&1 | tail -4
 }
 echo "== 4. quality against the peer (bundled record)"
@@ -83,12 +82,6 @@ quality "$root/jobs/data/piezo_est.csv" "$root/jobs/data/piezo_val.csv" "${PEER_
 if [[ -n ${HELDOUT:-} ]]; then
     echo "== 4b. quality against the peer (held-out record $HELDOUT)"
     # Missing: simulated from the same system with other seeds and stronger noise and spikes.
-    for part in est:21 val:22; do
-        if [[ ! -s $HELDOUT/${part%%:*}.csv ]]; then
-            mkdir -p "$HELDOUT"
-            "$bin" simulate --system "$root/jobs/data/piezo_system.json" --out "$HELDOUT/${part%%:*}.csv" \
-                --seed "${part##*:}" --noise-std 0.1 --outlier-prob 0.05 --outlier-range 20,60 >/dev/null
-        fi
-    done
+    heldout_record "$bin" "$root" "$HELDOUT"
     quality "$HELDOUT/est.csv" "$HELDOUT/val.csv" "$HELDOUT/peer_grid.jsonl"
 fi

@@ -16,6 +16,8 @@
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+# shellcheck source=benches/common.sh
+source "$root/benches/common.sh"
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/oesweep-target}
 peer=${PEER:-$root/../shared/peer/peer.py}
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
@@ -31,22 +33,9 @@ trap 'rm -rf "$work"' EXIT
 heldout=${HELDOUT:-$work/heldout}
 bundled_grid=${PEER_GRID:-$work/peer_grid.jsonl}
 
-peer_grid() {
-    local est=$1 val=$2 grid=$3
-    if [[ ! -s $grid ]]; then
-        python3 "$peer" --est "$est" --val "$val" \
-            --grid nb=7..14 nf=4..15 k=0.05,0.0625,0.0875,0.15,0.3,0.6,1.0,2.0 --jobs 1 --out "$grid" >/dev/null 2>&1
-    fi
-}
-for part in est:21 val:22; do
-    if [[ ! -s $heldout/${part%%:*}.csv ]]; then
-        mkdir -p "$heldout"
-        "$bin" simulate --system "$root/jobs/data/piezo_system.json" --out "$heldout/${part%%:*}.csv" \
-            --seed "${part##*:}" --noise-std 0.1 --outlier-prob 0.05 --outlier-range 20,60 >/dev/null
-    fi
-done
-peer_grid "$root/jobs/data/piezo_est.csv" "$root/jobs/data/piezo_val.csv" "$bundled_grid"
-peer_grid "$heldout/est.csv" "$heldout/val.csv" "$heldout/peer_grid.jsonl"
+heldout_record "$bin" "$root" "$heldout"
+peer_grid "$peer" "$root/jobs/data/piezo_est.csv" "$root/jobs/data/piezo_val.csv" "$bundled_grid"
+peer_grid "$peer" "$heldout/est.csv" "$heldout/val.csv" "$heldout/peer_grid.jsonl"
 
 printf '%-44s %9s %7s %9s %8s %8s %8s %8s\n' setting iters per_row reported L2_bund L2_held Hub_bund Hub_held
 # name huber_extra_starts huber_tol nested_starts

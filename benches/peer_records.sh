@@ -18,6 +18,8 @@
 # OESWEEP_* overrides of compare_peer_grid.rs pass through. Measures quality, not time.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+# shellcheck source=benches/common.sh
+source "$root/benches/common.sh"
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/oesweep-target}
 ns=${NS:-12288 24576 65536 100000}
 seed=${SEED:-0}
@@ -32,15 +34,10 @@ for n in $ns; do
     s=$((seed + n))
     est=$dir/est_${n}_$s.csv val=$dir/val_${n}_$s.csv grid=$dir/peer_${n}_$s.jsonl
     if [ ! -s "$grid" ]; then
-        for f in "$est:$n:$s" "$val:5000:$((s + 1))"; do
-            IFS=: read -r out len sd <<<"$f"
-            "$bin" simulate --system "$root/jobs/data/piezo_system.json" --out "$out" --n "$len" --seed "$sd" \
-                --noise-std 0.1 --outlier-prob 0.05 --outlier-range 20,60 >/dev/null
-        done
+        spiky_record "$bin" "$root" "$est" "$s" "$n"
+        spiky_record "$bin" "$root" "$val" "$((s + 1))" 5000
         echo "peer_records: the peer's grid of N = $n (seed $s) ..." >&2
-        python3 "$peer" --est "$est" --val "$val" --grid nb=7..14 nf=4..15 k=0.05,0.0625,0.0875,0.15,0.3,0.6,1.0,2.0 \
-            --jobs 2 --out "$grid.part" >/dev/null
-        mv "$grid.part" "$grid"
+        peer_grid "$peer" "$est" "$val" "$grid" 2
     fi
     echo "== N = $n (seed $s)"
     "$compare" "$est" "$grid" | tail -4
