@@ -119,6 +119,30 @@ fn lagged_dots_within(a: &[f64], b: &[f64], seams: &[usize], out: &mut [f64]) {
     }
 }
 
+/// The residuals' autocorrelation `ree[L] = sum_s e[s] e[s + L]` and their cross-correlation
+/// with the input `reu[L] = sum_s u[s] e[s + L]` at lags `0..ree.len()`, within each
+/// experiment as [`lagged_dots_within`], in one pass over the record ([`kernels::lagged_dots2`]).
+fn residual_correlations(e: &[f64], u: &[f64], seams: &[usize], ree: &mut [f64], reu: &mut [f64]) {
+    if seams.is_empty() {
+        kernels::lagged_dots2(e, u, e, ree, reu);
+        return;
+    }
+    let lags = ree.len();
+    ree.fill(0.0);
+    reu.fill(0.0);
+    let (mut pe, mut pu) = ([0.0; MAX_LAG + 1], [0.0; MAX_LAG + 1]);
+    for x in crate::data::experiment_ranges(e.len(), seams) {
+        let m = lags.min(x.len());
+        kernels::lagged_dots2(&e[x.clone()], &u[x.clone()], &e[x], &mut pe[..m], &mut pu[..m]);
+        for (o, p) in ree.iter_mut().zip(&pe[..m]) {
+            *o += p;
+        }
+        for (o, p) in reu.iter_mut().zip(&pu[..m]) {
+            *o += p;
+        }
+    }
+}
+
 /// The evidence of the model `theta` of `prob` fitted with `loss`; `yhat` is its output on the
 /// estimation record (zero initial conditions, offset included), as the criterion saw it, and
 /// `xu = (1/F) u`, `xy = (1/F) (yhat - c)` its Jacobian signals (the solver's, reused).
@@ -158,6 +182,9 @@ pub fn evidence(
     centre_into(&s.r, &mut s.e);
     let m = MAX_LAG.min(n.saturating_sub(2));
     s.input(prob.u, prob.seams, m);
+    let (mut ree, mut reu) = ([0.0; MAX_LAG + 1], [0.0; MAX_LAG + 1]);
+    let (ree, reu) = (&mut ree[..m + 1], &mut reu[..m + 1]);
+    residual_correlations(&s.e, &s.uc, prob.seams, ree, reu);
     Evidence {
         b_std: b.to_vec(),
         f_std: f.to_vec(),
@@ -165,8 +192,8 @@ pub fn evidence(
         // An infinite ratio (an undetermined parameter) is a finding; a NaN or a non-finite
         // p-value is not a number to report.
         max_rel_std: Some(max_rel_std).filter(|v| !v.is_nan()),
-        resid_white_p: Some(whiteness_p(&s.e, prob.seams)).filter(|v| v.is_finite()),
-        resid_indep_p: Some(independence_p(&s.e, prob.seams, &s.uc, &s.ruu)).filter(|v| v.is_finite()),
+        resid_white_p: Some(whiteness_p(ree, n)).filter(|v| v.is_finite()),
+        resid_indep_p: Some(independence_p(reu, ree[0], n, &s.ruu)).filter(|v| v.is_finite()),
         cancellations,
     }
 }
@@ -374,17 +401,13 @@ pub fn gain_std(b: &[f64], f: &[f64], delay: usize, cov: &[f64], w: f64) -> (f64
     (mag, var.max(0.0).sqrt())
 }
 
-/// Ljung-Box p-value of the centred residuals `e` over lags 1..[`MAX_LAG`] (the lagged
-/// products within each experiment, `seams`).
-fn whiteness_p(e: &[f64], seams: &[usize]) -> f64 {
-    let n = e.len();
-    let m = MAX_LAG.min(n.saturating_sub(2));
+/// Ljung-Box p-value of `n` centred residuals over lags 1..=m from their autocorrelation
+/// `acf` at lags 0..=m ([`residual_correlations`]).
+fn whiteness_p(acf: &[f64], n: usize) -> f64 {
+    let m = acf.len() - 1;
     if m == 0 {
         return f64::NAN;
     }
-    let mut acf = [0.0; MAX_LAG + 1];
-    let acf = &mut acf[..m + 1];
-    lagged_dots_within(e, e, seams, acf);
     if acf[0] <= 0.0 {
         return f64::NAN;
     }
@@ -393,19 +416,14 @@ fn whiteness_p(e: &[f64], seams: &[usize]) -> f64 {
     chi2_sf(q, m)
 }
 
-/// p-value of the independence of the centred residuals `e` from the input at lags
-/// 0..[`MAX_LAG`]; `u` is the centred input and `ruu` its autocorrelation at lags 0..=m.
-fn independence_p(e: &[f64], seams: &[usize], u: &[f64], ruu: &[f64]) -> f64 {
-    let n = e.len();
+/// p-value of the independence of `n` centred residuals from the input at lags 0..=m, from
+/// their cross-correlation with the centred input `reu` and their sum of squares `see`
+/// ([`residual_correlations`]); `ruu` is the input's autocorrelation at lags 0..=m.
+fn independence_p(reu: &[f64], see: f64, n: usize, ruu: &[f64]) -> f64 {
     let m = ruu.len() - 1;
-    let mut see = [0.0; 1];
-    let mut reu = [0.0; MAX_LAG + 1];
-    let reu = &mut reu[..m + 1];
-    kernels::lagged_dots(e, e, &mut see);
     // r_k = (1/N) sum_t e_t u_{t-k} = (1/N) sum_s u_s e_{s+k}.
-    lagged_dots_within(u, e, seams, reu);
     let nf = n as f64;
-    let sigma2 = see[0] / nf;
+    let sigma2 = see / nf;
     if !(sigma2 > 0.0 && ruu[0] > 0.0) {
         return f64::NAN;
     }
@@ -429,9 +447,8 @@ pub fn correlation_functions(r: &[f64], u: &[f64], seams: &[usize]) -> (Vec<f64>
     let m = MAX_LAG.min(r.len().saturating_sub(2));
     let (e, u) = (centred(r), centred(u));
     let (mut ree, mut ruu, mut reu) = (vec![0.0; m + 1], vec![0.0; 1], vec![0.0; m + 1]);
-    lagged_dots_within(&e, &e, seams, &mut ree);
+    residual_correlations(&e, &u, seams, &mut ree, &mut reu);
     kernels::lagged_dots(&u, &u, &mut ruu);
-    lagged_dots_within(&u, &e, seams, &mut reu);
     let norm = (ree[0] * ruu[0]).sqrt();
     (ree.iter().map(|v| v / ree[0]).collect(), reu.iter().map(|v| v / norm).collect())
 }
@@ -573,19 +590,21 @@ mod tests {
         };
         let e: Vec<f64> = (0..4000).map(|_| normal()).collect();
         let u: Vec<f64> = (0..4000).map(|_| normal()).collect();
-        let white = |x: &[f64]| whiteness_p(&centred(x), &[]);
-        let indep = |x: &[f64], u: &[f64]| {
-            let (x, u) = (centred(x), centred(u));
-            let mut ruu = vec![0.0; MAX_LAG + 1];
+        // (whiteness p, independence p) of residuals x against the input u (as long as x).
+        let tests = |x: &[f64], u: &[f64]| {
+            let (x, u) = (centred(x), centred(&u[..x.len()]));
+            let (mut ree, mut reu, mut ruu) = (vec![0.0; MAX_LAG + 1], vec![0.0; MAX_LAG + 1], vec![0.0; MAX_LAG + 1]);
+            residual_correlations(&x, &u, &[], &mut ree, &mut reu);
             kernels::lagged_dots(&u, &u, &mut ruu);
-            independence_p(&x, &[], &u, &ruu)
+            (whiteness_p(&ree, x.len()), independence_p(&reu, ree[0], x.len(), &ruu))
         };
-        assert!(white(&e) > 0.001, "{}", white(&e));
-        assert!(indep(&e, &u) > 0.001, "{}", indep(&e, &u));
+        let (white, indep) = tests(&e, &u);
+        assert!(white > 0.001, "{white}");
+        assert!(indep > 0.001, "{indep}");
         let ma: Vec<f64> = e.windows(2).map(|w| w[1] + 0.5 * w[0]).collect();
-        assert!(white(&ma) < 1e-6);
+        assert!(tests(&ma, &u).0 < 1e-6);
         // Residuals that carry the input at lag 3.
         let leak: Vec<f64> = (0..4000).map(|t| e[t] + if t >= 3 { 0.2 * u[t - 3] } else { 0.0 }).collect();
-        assert!(indep(&leak, &u) < 1e-6);
+        assert!(tests(&leak, &u).1 < 1e-6);
     }
 }

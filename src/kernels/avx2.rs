@@ -22,6 +22,66 @@ pub unsafe fn dot(a: &[f64], b: &[f64]) -> f64 {
 pub unsafe fn lagged_dots(a: &[f64], b: &[f64], out: &mut [f64]) {
     super::generic::lagged_dots_impl::<true>(a, b, out)
 }
+/// [`super::lagged_dots2`].
+///
+/// # Safety
+/// The CPU supports AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+pub unsafe fn lagged_dots2(a: &[f64], b: &[f64], c: &[f64], out_a: &mut [f64], out_b: &mut [f64]) {
+    let n = a.len().min(b.len()).min(c.len());
+    out_a.fill(0.0);
+    out_b.fill(0.0);
+    super::generic::blocked_lags(n, out_a.len(), |l, s0, end| {
+        // SAFETY: this function's own contract.
+        let (x, y) = unsafe { dot2(&a[s0..end], &b[s0..end], &c[s0 + l..end + l]) };
+        out_a[l] += x;
+        out_b[l] += y;
+    });
+}
+
+/// [`super::generic::dot2_impl`] with explicit 256-bit vectors, in its operation order (lane k
+/// of vector j is its accumulator 4 j + k): left to itself the compiler kept the 32
+/// accumulators partly scalar, and the fused pass ran slower than the two separate ones.
+///
+/// # Safety
+/// The CPU supports AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+unsafe fn dot2(a: &[f64], b: &[f64], c: &[f64]) -> (f64, f64) {
+    use std::arch::x86_64::*;
+    let n = a.len().min(b.len()).min(c.len());
+    let full = n / 16 * 16;
+    let mut acc_a = [_mm256_setzero_pd(); 4];
+    let mut acc_b = [_mm256_setzero_pd(); 4];
+    // SAFETY: i + 16 <= full <= n, so every load is inside its slice.
+    unsafe {
+        let (pa, pb, pc) = (a.as_ptr(), b.as_ptr(), c.as_ptr());
+        let mut i = 0;
+        while i < full {
+            for j in 0..4 {
+                let z = _mm256_loadu_pd(pc.add(i + 4 * j));
+                acc_a[j] = _mm256_fmadd_pd(_mm256_loadu_pd(pa.add(i + 4 * j)), z, acc_a[j]);
+                acc_b[j] = _mm256_fmadd_pd(_mm256_loadu_pd(pb.add(i + 4 * j)), z, acc_b[j]);
+            }
+            i += 16;
+        }
+    }
+    let (mut sa, mut sb) = (0.0f64, 0.0f64);
+    for i in full..n {
+        sa = a[i].mul_add(c[i], sa);
+        sb = b[i].mul_add(c[i], sb);
+    }
+    // The tree of dot_impl: accumulators k += k + 8, then k += k + 4, k += k + 2, k += k + 1.
+    let reduce = |acc: [__m256d; 4]| {
+        let v01 = _mm256_add_pd(acc[0], acc[2]);
+        let v23 = _mm256_add_pd(acc[1], acc[3]);
+        let v = _mm256_add_pd(v01, v23);
+        let mut l = [0.0; 4];
+        // SAFETY: l holds four f64.
+        unsafe { _mm256_storeu_pd(l.as_mut_ptr(), v) };
+        (l[0] + l[2]) + (l[1] + l[3])
+    };
+    (reduce(acc_a) + sa, reduce(acc_b) + sb)
+}
 /// [`super::rank1_upper`].
 ///
 /// # Safety

@@ -38,6 +38,37 @@ pub(super) fn dot_impl<const FMA: bool>(a: &[f64], b: &[f64]) -> f64 {
     acc[0] + s
 }
 
+/// [`dot_impl`] of `a` and of `b` with one `c`, in one pass: `c` is loaded once for both, and
+/// each sum is accumulated exactly as `dot_impl` accumulates it (the same result, bit for bit).
+#[inline(always)]
+pub(super) fn dot2_impl<const FMA: bool>(a: &[f64], b: &[f64], c: &[f64]) -> (f64, f64) {
+    const ACC: usize = 16;
+    let n = a.len().min(b.len()).min(c.len());
+    let (a, b, c) = (&a[..n], &b[..n], &c[..n]);
+    let (mut acc_a, mut acc_b) = ([0.0f64; ACC], [0.0f64; ACC]);
+    let (mut ca, mut cb, mut cc) = (a.chunks_exact(ACC), b.chunks_exact(ACC), c.chunks_exact(ACC));
+    for ((x, y), z) in (&mut ca).zip(&mut cb).zip(&mut cc) {
+        for k in 0..ACC {
+            acc_a[k] = madd::<FMA>(x[k], z[k], acc_a[k]);
+            acc_b[k] = madd::<FMA>(y[k], z[k], acc_b[k]);
+        }
+    }
+    let (mut sa, mut sb) = (0.0, 0.0);
+    for ((x, y), z) in ca.remainder().iter().zip(cb.remainder()).zip(cc.remainder()) {
+        sa = madd::<FMA>(*x, *z, sa);
+        sb = madd::<FMA>(*y, *z, sb);
+    }
+    let mut w = ACC / 2;
+    while w > 0 {
+        for k in 0..w {
+            acc_a[k] += acc_a[k + w];
+            acc_b[k] += acc_b[k + w];
+        }
+        w /= 2;
+    }
+    (acc_a[0] + sa, acc_b[0] + sb)
+}
+
 /// Samples per block of [`lagged_dots_impl`]: two blocks (plus the lags) stay in L1.
 const LAG_BLOCK: usize = 1024;
 
@@ -71,6 +102,27 @@ pub(super) fn lagged_dots_impl<const FMA: bool>(a: &[f64], b: &[f64], out: &mut 
     let n = a.len().min(b.len());
     out.fill(0.0);
     blocked_lags(n, out.len(), |l, s0, end| out[l] += dot_impl::<FMA>(&a[s0..end], &b[s0 + l..end + l]));
+}
+
+/// [`lagged_dots_impl`] of `a` and of `b`, each against the same `c`, in one pass:
+/// `out_a[l] = sum_s a[s] c[s+l]`, `out_b[l] = sum_s b[s] c[s+l]` (over the common length, lags
+/// `0..out_a.len()`), equal bit for bit to the two calls.
+#[inline(always)]
+pub(super) fn lagged_dots2_impl<const FMA: bool>(
+    a: &[f64],
+    b: &[f64],
+    c: &[f64],
+    out_a: &mut [f64],
+    out_b: &mut [f64],
+) {
+    let n = a.len().min(b.len()).min(c.len());
+    out_a.fill(0.0);
+    out_b.fill(0.0);
+    blocked_lags(n, out_a.len(), |l, s0, end| {
+        let (x, y) = dot2_impl::<FMA>(&a[s0..end], &b[s0..end], &c[s0 + l..end + l]);
+        out_a[l] += x;
+        out_b[l] += y;
+    });
 }
 
 /// The six correlations of the normal equations at lags `0..out.len()`:
@@ -277,6 +329,9 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 pub fn lagged_dots(a: &[f64], b: &[f64], out: &mut [f64]) {
     lagged_dots_impl::<false>(a, b, out)
+}
+pub fn lagged_dots2(a: &[f64], b: &[f64], c: &[f64], out_a: &mut [f64], out_b: &mut [f64]) {
+    lagged_dots2_impl::<false>(a, b, c, out_a, out_b)
 }
 pub fn rank1_upper(h: &mut [f64], d: usize, v: &[f64], alpha: f64) {
     rank1_upper_impl::<false>(h, d, v, alpha)

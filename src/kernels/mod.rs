@@ -69,6 +69,13 @@ dispatch! {
     /// `out[l] = sum_s a[s] b[s+l]` for `l = 0..out.len()` over the common length of a and b.
     fn lagged_dots(a: &[f64], b: &[f64], out: &mut [f64]) {}
 
+    /// [`lagged_dots`] of `a` and of `b` against the same `c` in one pass (`c` loaded once):
+    /// `out_a[l] = sum_s a[s] c[s+l]`, `out_b[l] = sum_s b[s] c[s+l]`, equal bit for bit to the
+    /// two calls. The residual tests' auto- and cross-correlations (`c` the residuals).
+    fn lagged_dots2(a: &[f64], b: &[f64], c: &[f64], out_a: &mut [f64], out_b: &mut [f64]) {
+        assert!(a.len() == b.len() && b.len() == c.len() && out_a.len() == out_b.len(), "one length each");
+    }
+
     /// `out[l] = [R(u,u), R(y,y), R(u,y), R(y,u), R(u,r), R(y,r)](l)` for `l = 0..out.len()`,
     /// `R(a,b)(l) = sum_s a[s] b[s+l]` over the common length.
     fn correlations(u: &[f64], y: &[f64], r: &[f64], out: &mut [[f64; 6]]) {}
@@ -233,6 +240,29 @@ mod tests {
                     assert_eq!(compact(&w, skip, &mut rows2, None), m);
                     assert_eq!(rows2[..m], rows[..m]);
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn fused_lagged_dots_are_the_two_calls_bit_for_bit() {
+        for len in [0, 1, 15, 16, 17, 100, 1001, 2100] {
+            let a: Vec<f64> = (0..len).map(|i| (i as f64 * 0.37).sin()).collect();
+            let b: Vec<f64> = (0..len).map(|i| (i as f64 * 0.23).cos() - 0.1).collect();
+            let c: Vec<f64> = (0..len).map(|i| (i as f64 * 0.11).cos()).collect();
+            for lags in [0, 1, 5, 26, 30] {
+                let (mut wa, mut wb) = (vec![f64::NAN; lags], vec![f64::NAN; lags]);
+                lagged_dots(&a, &c, &mut wa);
+                lagged_dots(&b, &c, &mut wb);
+                let (mut oa, mut ob) = (vec![f64::NAN; lags], vec![f64::NAN; lags]);
+                lagged_dots2(&a, &b, &c, &mut oa, &mut ob);
+                assert_eq!((oa.clone(), ob.clone()), (wa, wb), "len {len} lags {lags}");
+                let (mut ga, mut gb) = (vec![f64::NAN; lags], vec![f64::NAN; lags]);
+                generic::lagged_dots2(&a, &b, &c, &mut ga, &mut gb);
+                let (mut ha, mut hb) = (vec![f64::NAN; lags], vec![f64::NAN; lags]);
+                generic::lagged_dots(&a, &c, &mut ha);
+                generic::lagged_dots(&b, &c, &mut hb);
+                assert_eq!((ga, gb), (ha, hb), "baseline build, len {len} lags {lags}");
             }
         }
     }
