@@ -20,28 +20,18 @@
 //! triangular factor of the scaled Jacobian, `J_s = Q R` (blocked Householder QR, O(N d^2)),
 //! whose rounding error grows with `cond(J_s)` instead of `cond(J_s)^2` ([`qr_inverse`]).
 //!
-//! **Residual tests**, on the robust residuals `psi_g(e)` so that a spike does not dominate
-//! (Ljung 1999, 16.6):
-//! - whiteness: the portmanteau statistic `Q = N (N+2) sum_{k=1}^{M} rho_k^2 / (N-k)` of their
-//!   autocorrelations `rho_k`, chi-squared with M degrees of freedom (Ljung-Box);
-//! - independence from past inputs: the cross-correlations `r_k` of the residuals with the
-//!   input at lags `k = 0..M`; under independence `sqrt(N) r` is normal with covariance
-//!   `sigma_e^2 R_u` (the input's Toeplitz autocovariance), so
-//!   `zeta = N r^T R_u^-1 r / sigma_e^2` is chi-squared with M + 1 degrees of freedom.
-//!
-//! Both as p-values (`resid_white_p`, `resid_indep_p`), M = 25.
+//! **Residual tests** (whiteness, independence from the input): [`super::residual_tests`].
 
 use faer::linalg::solvers::DenseSolveCore;
 use faer::prelude::*;
-use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::huber::Loss;
 use super::normal::NormalEquations;
 use super::problem::Problem;
-use crate::{kernels, oe};
-
-/// Largest lag of the residual tests.
-pub const MAX_LAG: usize = 25;
+use super::residual_tests::{
+    MAX_LAG, centre_into, independence_p, lagged_dots_within, residual_correlations, whiteness_p,
+};
+use crate::oe;
 
 /// Parameter uncertainty and residual tests of one fitted model.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
@@ -96,50 +86,6 @@ impl Scratch {
         self.input_of.extend_from_slice(u);
         self.seams_of.clear();
         self.seams_of.extend_from_slice(seams);
-    }
-}
-
-/// `out[L] = sum_s a[s] b[s + L]` over the pairs within one experiment (`seams` as in
-/// [`Problem::seams`]; empty: [`kernels::lagged_dots`] itself).
-fn lagged_dots_within(a: &[f64], b: &[f64], seams: &[usize], out: &mut [f64]) {
-    if seams.is_empty() {
-        kernels::lagged_dots(a, b, out);
-        return;
-    }
-    let mut part = [0.0; MAX_LAG + 1];
-    let part = &mut part[..out.len()];
-    out.fill(0.0);
-    for e in crate::data::experiment_ranges(a.len(), seams) {
-        let m = out.len().min(e.len());
-        part[..m].fill(0.0);
-        kernels::lagged_dots(&a[e.clone()], &b[e], &mut part[..m]);
-        for (o, p) in out.iter_mut().zip(&part[..m]) {
-            *o += p;
-        }
-    }
-}
-
-/// The residuals' autocorrelation `ree[L] = sum_s e[s] e[s + L]` and their cross-correlation
-/// with the input `reu[L] = sum_s u[s] e[s + L]` at lags `0..ree.len()`, within each
-/// experiment as [`lagged_dots_within`], in one pass over the record ([`kernels::lagged_dots2`]).
-fn residual_correlations(e: &[f64], u: &[f64], seams: &[usize], ree: &mut [f64], reu: &mut [f64]) {
-    if seams.is_empty() {
-        kernels::lagged_dots2(e, u, e, ree, reu);
-        return;
-    }
-    let lags = ree.len();
-    ree.fill(0.0);
-    reu.fill(0.0);
-    let (mut pe, mut pu) = ([0.0; MAX_LAG + 1], [0.0; MAX_LAG + 1]);
-    for x in crate::data::experiment_ranges(e.len(), seams) {
-        let m = lags.min(x.len());
-        kernels::lagged_dots2(&e[x.clone()], &u[x.clone()], &e[x], &mut pe[..m], &mut pu[..m]);
-        for (o, p) in ree.iter_mut().zip(&pe[..m]) {
-            *o += p;
-        }
-        for (o, p) in reu.iter_mut().zip(&pu[..m]) {
-            *o += p;
-        }
     }
 }
 
@@ -401,116 +347,9 @@ pub fn gain_std(b: &[f64], f: &[f64], delay: usize, cov: &[f64], w: f64) -> (f64
     (mag, var.max(0.0).sqrt())
 }
 
-/// Ljung-Box p-value of `n` centred residuals over lags 1..=m from their autocorrelation
-/// `acf` at lags 0..=m ([`residual_correlations`]).
-fn whiteness_p(acf: &[f64], n: usize) -> f64 {
-    let m = acf.len() - 1;
-    if m == 0 {
-        return f64::NAN;
-    }
-    if acf[0] <= 0.0 {
-        return f64::NAN;
-    }
-    let nf = n as f64;
-    let q = nf * (nf + 2.0) * (1..=m).map(|k| (acf[k] / acf[0]).powi(2) / (nf - k as f64)).sum::<f64>();
-    chi2_sf(q, m)
-}
-
-/// p-value of the independence of `n` centred residuals from the input at lags 0..=m, from
-/// their cross-correlation with the centred input `reu` and their sum of squares `see`
-/// ([`residual_correlations`]); `ruu` is the input's autocorrelation at lags 0..=m.
-fn independence_p(reu: &[f64], see: f64, n: usize, ruu: &[f64]) -> f64 {
-    let m = ruu.len() - 1;
-    // r_k = (1/N) sum_t e_t u_{t-k} = (1/N) sum_s u_s e_{s+k}.
-    let nf = n as f64;
-    let sigma2 = see / nf;
-    if !(sigma2 > 0.0 && ruu[0] > 0.0) {
-        return f64::NAN;
-    }
-    let k = m + 1;
-    let toeplitz = faer::Mat::<f64>::from_fn(k, k, |i, j| ruu[i.abs_diff(j)] / nf);
-    let rhs = faer::Mat::<f64>::from_fn(k, 1, |i, _| reu[i] / nf);
-    crate::faer_sequential();
-    let Ok(chol) = toeplitz.llt(faer::Side::Lower) else { return f64::NAN };
-    let x = chol.solve(&rhs);
-    let zeta = nf * (0..k).map(|i| rhs[(i, 0)] * x[(i, 0)]).sum::<f64>() / sigma2;
-    chi2_sf(zeta, k)
-}
-
-/// The correlation functions the tests are made of (MATLAB's `resid` plots): the
-/// autocorrelation of the residuals `r` at lags 0..=[`MAX_LAG`] and their cross-correlation
-/// with the input, `sum_t r_t u_{t-k} / sqrt(sum r^2 sum u^2)`, at lags 0..=MAX_LAG (means
-/// removed). Under the tests' null hypotheses each is within `2.58 / sqrt(N)` with
-/// probability 0.99 (for the cross-correlation, when the residuals are white). The lagged
-/// products stay within each experiment (`seams` as in [`Problem::seams`]), as the tests' own.
-pub fn correlation_functions(r: &[f64], u: &[f64], seams: &[usize]) -> (Vec<f64>, Vec<f64>) {
-    let m = MAX_LAG.min(r.len().saturating_sub(2));
-    let (e, u) = (centred(r), centred(u));
-    let (mut ree, mut ruu, mut reu) = (vec![0.0; m + 1], vec![0.0; 1], vec![0.0; m + 1]);
-    residual_correlations(&e, &u, seams, &mut ree, &mut reu);
-    kernels::lagged_dots(&u, &u, &mut ruu);
-    let norm = (ree[0] * ruu[0]).sqrt();
-    (ree.iter().map(|v| v / ree[0]).collect(), reu.iter().map(|v| v / norm).collect())
-}
-
-fn centred(x: &[f64]) -> Vec<f64> {
-    let mut out = Vec::new();
-    centre_into(x, &mut out);
-    out
-}
-
-/// `out = x - mean(x)`.
-fn centre_into(x: &[f64], out: &mut Vec<f64>) {
-    let mean = x.iter().sum::<f64>() / x.len() as f64;
-    out.clear();
-    out.extend(x.iter().map(|v| v - mean));
-}
-
-/// `P(X > q)` for X chi-squared with `dof` degrees of freedom.
-fn chi2_sf(q: f64, dof: usize) -> f64 {
-    match ChiSquared::new(dof as f64) {
-        Ok(dist) if q.is_finite() => dist.sf(q.max(0.0)),
-        _ => f64::NAN,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The report's correlation functions are the residual tests' ones: no lagged product
-    /// pairs samples of two experiments (checked against the sum over pairs written out).
-    #[test]
-    fn correlation_functions_keep_lags_within_experiments() {
-        let n = 900;
-        let u: Vec<f64> = (0..n).map(|t| ((t * 37 % 23) as f64 - 11.0) * 0.1).collect();
-        // Residuals that repeat the input one sample later: every cross-correlation lag but 1
-        // is small, and lag 1 across a seam would pair two experiments' samples.
-        let r: Vec<f64> =
-            (0..n).map(|t| if t == 0 { 0.0 } else { u[t - 1] } + ((t * 11 % 7) as f64 - 3.0) * 0.01).collect();
-        let seams = [300, 650];
-        let (acf, ccf) = correlation_functions(&r, &u, &seams);
-        let centred = |x: &[f64]| {
-            let m = x.iter().sum::<f64>() / x.len() as f64;
-            x.iter().map(|v| v - m).collect::<Vec<f64>>()
-        };
-        let (e, uc) = (centred(&r), centred(&u));
-        let experiment = |t: usize| seams.iter().filter(|&&s| s <= t).count();
-        let within = |a: &[f64], b: &[f64], lag: usize| {
-            (0..n - lag).filter(|&s| experiment(s) == experiment(s + lag)).map(|s| a[s] * b[s + lag]).sum::<f64>()
-        };
-        let (ee0, uu0) = (within(&e, &e, 0), within(&uc, &uc, 0));
-        assert_eq!(acf.len(), MAX_LAG + 1);
-        for lag in 0..=MAX_LAG {
-            let want_acf = within(&e, &e, lag) / ee0;
-            let want_ccf = within(&uc, &e, lag) / (ee0 * uu0).sqrt();
-            assert!((acf[lag] - want_acf).abs() <= 1e-12, "acf lag {lag}: {} vs {want_acf}", acf[lag]);
-            assert!((ccf[lag] - want_ccf).abs() <= 1e-12, "ccf lag {lag}: {} vs {want_ccf}", ccf[lag]);
-        }
-        // Across the seams the answer differs: the test above can tell the two apart.
-        let (_, ccf_joined) = correlation_functions(&r, &u, &[]);
-        assert!((ccf_joined[1] - ccf[1]).abs() > 1e-6);
-    }
 
     /// The QR path (taken when the formed Gram matrix is ill-conditioned) inverts the same
     /// matrix as the Cholesky path, also on a record of several experiments with an offset:
@@ -575,36 +414,5 @@ mod tests {
                 );
             }
         }
-    }
-
-    #[test]
-    fn white_noise_passes_and_a_moving_average_fails() {
-        let mut s = 99u64;
-        let mut normal = || {
-            let mut u = || {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-            };
-            let (a, b) = (u(), u());
-            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-        };
-        let e: Vec<f64> = (0..4000).map(|_| normal()).collect();
-        let u: Vec<f64> = (0..4000).map(|_| normal()).collect();
-        // (whiteness p, independence p) of residuals x against the input u (as long as x).
-        let tests = |x: &[f64], u: &[f64]| {
-            let (x, u) = (centred(x), centred(&u[..x.len()]));
-            let (mut ree, mut reu, mut ruu) = (vec![0.0; MAX_LAG + 1], vec![0.0; MAX_LAG + 1], vec![0.0; MAX_LAG + 1]);
-            residual_correlations(&x, &u, &[], &mut ree, &mut reu);
-            kernels::lagged_dots(&u, &u, &mut ruu);
-            (whiteness_p(&ree, x.len()), independence_p(&reu, ree[0], x.len(), &ruu))
-        };
-        let (white, indep) = tests(&e, &u);
-        assert!(white > 0.001, "{white}");
-        assert!(indep > 0.001, "{indep}");
-        let ma: Vec<f64> = e.windows(2).map(|w| w[1] + 0.5 * w[0]).collect();
-        assert!(tests(&ma, &u).0 < 1e-6);
-        // Residuals that carry the input at lag 3.
-        let leak: Vec<f64> = (0..4000).map(|t| e[t] + if t >= 3 { 0.2 * u[t - 3] } else { 0.0 }).collect();
-        assert!(tests(&leak, &u).1 < 1e-6);
     }
 }

@@ -21,7 +21,8 @@
 //! initial_state  free response, model output                   linalg
 //! initial_guess  ARX + IV starts                                problem
 //! separable      variable projection inner problem             problem, linalg, normal, huber
-//! evidence       covariance, residual tests                    problem, normal, huber, cancellation
+//! residual_tests whiteness and independence of the residuals    kernels
+//! evidence       covariance, residual tests                    problem, normal, huber, cancellation, residual_tests
 //! workspace      per-worker buffers                            problem, normal, separable, evidence
 //! solver         Levenberg-Marquardt                           all of the above
 //! fit            LsFit, HuberFit, assessment                   solver, evidence, initial_state
@@ -42,6 +43,7 @@ pub mod linalg;
 pub mod normal;
 pub mod options;
 pub mod problem;
+pub mod residual_tests;
 pub mod separable;
 pub mod solver;
 pub mod workspace;

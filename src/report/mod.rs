@@ -436,7 +436,7 @@ fn residual_sections(s: &Review, pick: Option<Picked>) -> Result<[Section; 2]> {
                 let loss = crate::estimate::Loss::Huber { gamma: p.model.gamma() };
                 let r: Vec<f64> = s.est.y.iter().zip(&y_h).map(|(y, yh)| loss.psi(y - yh)).collect();
                 let u: Vec<f64> = s.est.u.iter().map(|v| v - s.u0).collect();
-                let (acf, ccf) = crate::estimate::evidence::correlation_functions(&r, &u, &s.est.seams);
+                let (acf, ccf) = crate::estimate::residual_tests::correlation_functions(&r, &u, &s.est.seams);
                 let file = "report-resid-corr.svg";
                 let ps = (p.model.evidence.resid_white_p, p.model.evidence.resid_indep_p);
                 res_figs.push(figure(folder, file, figures::resid_corr_figure(&acf, &ccf, r.len(), ps, p, file))?);

@@ -2,7 +2,7 @@
 
 use super::super::plot::*;
 use super::{Figure, Picked};
-use crate::estimate::evidence::MAX_LAG;
+use crate::estimate::residual_tests::MAX_LAG;
 use plotters::prelude::*;
 
 /// The autocorrelation of the pick's robust residuals psi_g(e) (lags 1..25) and their
