@@ -29,7 +29,7 @@ use super::huber::Loss;
 use super::normal::NormalEquations;
 use super::problem::Problem;
 use super::residual_tests::{
-    MAX_LAG, centre_into, independence_p, lagged_dots_within, residual_correlations, whiteness_p,
+    MAX_LAG, centre_into, independence_p, lagged_dots2_within, residual_correlations, whiteness_p,
 };
 use crate::oe;
 
@@ -81,7 +81,10 @@ impl Scratch {
         }
         centre_into(u, &mut self.uc);
         self.ruu.resize(m + 1, 0.0);
-        lagged_dots_within(&self.uc, &self.uc, seams, &mut self.ruu);
+        // The input's autocorrelation, by the residuals' kernel and seam rule (its second
+        // output is the same sums again, once per record).
+        let mut again = [0.0; MAX_LAG + 1];
+        lagged_dots2_within(&self.uc, &self.uc, &self.uc, seams, &mut self.ruu, &mut again[..m + 1]);
         self.input_of.clear();
         self.input_of.extend_from_slice(u);
         self.seams_of.clear();

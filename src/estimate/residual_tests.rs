@@ -20,21 +20,32 @@ use crate::kernels;
 /// Largest lag of the residual tests.
 pub const MAX_LAG: usize = 25;
 
-/// `out[L] = sum_s a[s] b[s + L]` over the pairs within one experiment (`seams` as in
-/// [`Problem::seams`]; empty: [`kernels::lagged_dots`] itself).
-pub(super) fn lagged_dots_within(a: &[f64], b: &[f64], seams: &[usize], out: &mut [f64]) {
+/// [`kernels::lagged_dots2`] over the pairs within one experiment (`seams` as in
+/// [`crate::estimate::Problem::seams`]; empty: the kernel itself): `out_a[L] = sum_s a[s] c[s + L]`,
+/// `out_b[L] = sum_s b[s] c[s + L]`, no product pairing samples of two experiments.
+pub(super) fn lagged_dots2_within(
+    a: &[f64],
+    b: &[f64],
+    c: &[f64],
+    seams: &[usize],
+    out_a: &mut [f64],
+    out_b: &mut [f64],
+) {
     if seams.is_empty() {
-        kernels::lagged_dots(a, b, out);
+        kernels::lagged_dots2(a, b, c, out_a, out_b);
         return;
     }
-    let mut part = [0.0; MAX_LAG + 1];
-    let part = &mut part[..out.len()];
-    out.fill(0.0);
-    for e in crate::data::experiment_ranges(a.len(), seams) {
-        let m = out.len().min(e.len());
-        part[..m].fill(0.0);
-        kernels::lagged_dots(&a[e.clone()], &b[e], &mut part[..m]);
-        for (o, p) in out.iter_mut().zip(&part[..m]) {
+    let lags = out_a.len();
+    out_a.fill(0.0);
+    out_b.fill(0.0);
+    let (mut pa, mut pb) = ([0.0; MAX_LAG + 1], [0.0; MAX_LAG + 1]);
+    for x in crate::data::experiment_ranges(c.len(), seams) {
+        let m = lags.min(x.len());
+        kernels::lagged_dots2(&a[x.clone()], &b[x.clone()], &c[x], &mut pa[..m], &mut pb[..m]);
+        for (o, p) in out_a.iter_mut().zip(&pa[..m]) {
+            *o += p;
+        }
+        for (o, p) in out_b.iter_mut().zip(&pb[..m]) {
             *o += p;
         }
     }
@@ -42,26 +53,9 @@ pub(super) fn lagged_dots_within(a: &[f64], b: &[f64], seams: &[usize], out: &mu
 
 /// The residuals' autocorrelation `ree[L] = sum_s e[s] e[s + L]` and their cross-correlation
 /// with the input `reu[L] = sum_s u[s] e[s + L]` at lags `0..ree.len()`, within each
-/// experiment as [`lagged_dots_within`], in one pass over the record ([`kernels::lagged_dots2`]).
+/// experiment, in one pass over the record.
 pub(super) fn residual_correlations(e: &[f64], u: &[f64], seams: &[usize], ree: &mut [f64], reu: &mut [f64]) {
-    if seams.is_empty() {
-        kernels::lagged_dots2(e, u, e, ree, reu);
-        return;
-    }
-    let lags = ree.len();
-    ree.fill(0.0);
-    reu.fill(0.0);
-    let (mut pe, mut pu) = ([0.0; MAX_LAG + 1], [0.0; MAX_LAG + 1]);
-    for x in crate::data::experiment_ranges(e.len(), seams) {
-        let m = lags.min(x.len());
-        kernels::lagged_dots2(&e[x.clone()], &u[x.clone()], &e[x], &mut pe[..m], &mut pu[..m]);
-        for (o, p) in ree.iter_mut().zip(&pe[..m]) {
-            *o += p;
-        }
-        for (o, p) in reu.iter_mut().zip(&pu[..m]) {
-            *o += p;
-        }
-    }
+    lagged_dots2_within(e, u, e, seams, ree, reu);
 }
 
 /// Ljung-Box p-value of `n` centred residuals over lags 1..=m from their autocorrelation
