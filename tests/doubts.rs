@@ -61,6 +61,45 @@ fn a_true_order_outside_the_grid_puts_the_pick_on_the_edge_and_says_so() {
     assert!(warnings.is_empty(), "{warnings:?}");
 }
 
+/// One record with spikes, no validation record, the grid containing the plant: the summary
+/// leads with RBIC, which finds the orders; the paper's picks say their basis grows with the
+/// orders; no warning tells the user to widen the grid.
+#[test]
+fn one_record_leads_with_rbic_and_does_not_ask_to_widen_a_grid_that_holds_the_plant() {
+    let (b, f) = oe22();
+    let n = 2000;
+    let u = binary_input(n, 3, 1.0, 17);
+    let mut rng = Lcg(23);
+    let y0 = oesweep::oe::simulate_vec(&b, &f, 1, &u);
+    let sd = 0.2 * (y0.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
+    let y: Vec<f64> = y0
+        .iter()
+        .map(|v| {
+            let spike = if rng.next() < 0.15 { (5.0 + 5.0 * rng.next()) * sd * rng.normal().signum() } else { 0.0 };
+            v + sd * rng.normal() + spike
+        })
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let (_, warnings) = run(dir.path(), &u, &y, 4);
+    assert!(!warnings.iter().any(|w| w.contains("widen the grid")), "{warnings:?}");
+    let sel: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/selection.json")).unwrap()).unwrap();
+    assert_eq!(sel["rule"], "rbic");
+    assert!(sel["rule_why"].as_str().unwrap().contains("without a validation record"), "{}", sel["rule_why"]);
+    let lead = &sel["picks"]["rbic"]["model"];
+    assert_eq!((lead["nb"].as_u64(), lead["nf"].as_u64()), (Some(2), Some(2)), "{lead}");
+    let why = sel["picks"]["paper_m2"]["why"].as_str().unwrap();
+    assert!(why.contains("estimation fit, which grows with the orders"), "{why}");
+    // The summary names the lead and why.
+    let o = Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .args(["report", dir.path().join("out").to_str().unwrap()])
+        .output()
+        .expect("oesweep runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let page = std::fs::read_to_string(dir.path().join("out/report.html")).unwrap();
+    assert!(page.contains("<b>rbic</b> (lead)") && page.contains("Lead rule."), "the report names the lead");
+}
+
 #[test]
 fn an_integrating_plant_is_named_by_its_spectrum_and_its_poles() {
     // y_t = y_{t-1} + 0.05 u_{t-1} + noise: |G| ~ 1/f towards 0 Hz.

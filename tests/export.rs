@@ -29,6 +29,9 @@ fn finished_run(dir: &Path) -> PathBuf {
         "name": "export",
         "data": { "path": "data.csv", "u": "u", "y": "y", "ts": 0.01 },
         "grid": { "nb": [1, 3], "nf": [1, 3], "k": [0.5, 1.5] },
+        // One record leads with rbic by default; the job names the paper's rule, whose pick
+        // selection.json keeps with its covariance.
+        "selection": { "rule": "paper_m2" },
         "output": "out"
     });
     std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
@@ -51,7 +54,9 @@ fn the_lead_pick_leaves_as_json_mat_and_matlab_with_the_runs_covariance() {
         serde_json::from_str(&std::fs::read_to_string(out.join("selection.json")).unwrap()).unwrap();
     let m2 = &sel["m2"];
 
-    // JSON: the lead rule (paper_m2) by default, num/den/dt as python-control takes them.
+    assert_eq!(sel["rule"], "paper_m2");
+    assert!(sel["rule_why"].as_str().unwrap().contains("named by the job"), "{}", sel["rule_why"]);
+    // JSON: the lead rule (the job's paper_m2) by default, num/den/dt as python-control takes them.
     let j = json(&oesweep(&["export", folder, "--to", "json"]));
     assert_eq!(j["b"], m2["b"]);
     assert_eq!(j["f"], m2["f"]);

@@ -19,7 +19,9 @@
 //! unchanged bit for bit. Issue 30 blessed again for the chains' secant predictor along k: the
 //! `chains` table's 72 cells within a relative 8e-9 of the old criteria (the same minima reached
 //! from other starts), the other strategies' numbers unchanged (their files gained the
-//! `fit_exp`/`fit_val_exp` columns of issue 28), the same picks. Bless again only for a change that is meant to change the numbers, and
+//! `fit_exp`/`fit_val_exp` columns of issue 28), the same picks. Issue 37 blessed selection.json again (the cells' files untouched): the edge
+//! warning looks one step beyond the grid and names RBIC's minimum there instead of "widen the
+//! grid", and `rule_why` says why the lead rule leads; every number and pick unchanged. Bless again only for a change that is meant to change the numbers, and
 //! say so in the commit.
 //!
 //! Bit-for-bit holds on machines with the AVX2+FMA kernels the fixtures were made with (every

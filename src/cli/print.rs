@@ -104,7 +104,7 @@ pub(super) fn print_picks(selection: &reduce::Selection) {
                 "{label} OE({}, {}) k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  fit = {}",
                 m.model.key.nb,
                 m.model.key.nf,
-                m.model.k(),
+                crate::report::plot::trimmed(m.model.k(), 4),
                 m.model.gamma(),
                 m.model.criterion(),
                 100.0 * m.model.l1c(),
@@ -112,6 +112,20 @@ pub(super) fn print_picks(selection: &reduce::Selection) {
             ),
             None => println!("{label} none (no usable cell)"),
         }
+    }
+    let rule = selection.rule;
+    match selection.picks.get(&rule).and_then(|p| p.model.as_ref()) {
+        Some(m) => println!(
+            "pick ({}) OE({}, {}) delay {}{}  {} = {}",
+            rule.as_str(),
+            m.key.nb,
+            m.key.nf,
+            m.key.delay,
+            m.row.k.map_or(" (least squares)".to_string(), |k| format!(" k = {}", crate::report::plot::trimmed(k, 4))),
+            selection.basis.column(),
+            opt_pct(Some(m.score).filter(|v| v.is_finite()))
+        ),
+        None => println!("pick ({}) none", rule.as_str()),
     }
 }
 
@@ -142,7 +156,8 @@ pub(super) fn print_rules(selection: &reduce::Selection) {
             m.evidence.cancellations.map_or("-".to_string(), |c| c.to_string()),
         );
     }
-    println!("(* the rule the summary leads with; every rule's reason is in selection.json's picks)");
+    let why = if selection.rule_why.is_empty() { selection.rule.as_str() } else { selection.rule_why.as_str() };
+    println!("(* the rule the summary leads with, {why}; every rule's reason is in selection.json's picks)");
 }
 
 /// The page of a report, or its error after the summary was printed.

@@ -32,6 +32,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 
+mod beyond;
 mod export_model;
 mod single;
 
@@ -379,16 +380,21 @@ fn write_results(out: &Path, job: &ValidJob, rows: &[CellRow], inputs: Option<&I
         basis: reduce::choose_basis(job.job.validation.is_some(), job.job.band_hz.is_some()),
         min_tolerance: settings.min_tolerance,
         fit_tolerance: settings.fit_tolerance,
+        rule: settings.rule,
     };
     let mut selection = reduce::select(rows, &sel_opts);
-    selection.rule = settings.rule;
     selection.offset = Some(job.job.offset);
     selection.input_level = inputs.map(|i| i.levels.u0);
     selection.initial_state = Some(job.job.initial_state);
     selection.warnings = inputs.map(|i| i.warnings.clone()).unwrap_or_default();
     let bounds = |v: &[usize]| (v[0] as u32, v[v.len() - 1] as u32);
     let grid = reduce::doubts::GridBounds { nb: bounds(&job.nb), nf: bounds(&job.nf), delay: bounds(&job.delays) };
-    selection.warnings.extend(reduce::doubts::pick_warnings(&selection, &grid));
+    let rbic_pick = selection.picks.get(&reduce::Rule::Rbic).and_then(|p| p.model.as_ref());
+    let beyond = match (rbic_pick, inputs) {
+        (Some(pick), Some(inputs)) => beyond::beyond_edges(pick, rows, &grid, inputs, job),
+        _ => Vec::new(),
+    };
+    selection.warnings.extend(reduce::doubts::pick_warnings(&selection, rows, &grid, &beyond));
     if let Some(inputs) = inputs {
         for pick in [selection.m1.as_mut(), selection.m2.as_mut()].into_iter().flatten() {
             pick.covariance = covariance_of(&pick.model, inputs);

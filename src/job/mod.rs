@@ -248,13 +248,19 @@ pub struct SelectionSettings {
     /// Candidates within this many fit-percentage points of the best count as ties; the one
     /// with the fewest parameters wins.
     pub fit_tolerance: f64,
-    /// The pick rule the summary leads with (every rule is reported; METHOD.md 7.1).
-    pub rule: crate::reduce::Rule,
+    /// The pick rule the summary leads with (every rule is reported; METHOD.md 7.1); absent:
+    /// `paper_m2` with a validation record, `rbic` without ([`crate::reduce::rules::lead_rule`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rule: Option<crate::reduce::Rule>,
 }
 
 impl Default for SelectionSettings {
     fn default() -> Self {
-        SelectionSettings { min_tolerance: 1e-3, fit_tolerance: 0.05, rule: crate::reduce::rules::DEFAULT_RULE }
+        SelectionSettings {
+            min_tolerance: crate::reduce::DEFAULT_MIN_TOLERANCE,
+            fit_tolerance: crate::reduce::DEFAULT_FIT_TOLERANCE,
+            rule: None,
+        }
     }
 }
 

@@ -106,12 +106,14 @@ pub struct ReduceOptions {
     pub min_tolerance: f64,
     /// Candidates within this many percentage points of the best score are tied (rule 6).
     pub fit_tolerance: f64,
+    /// The rule to lead with; None: the default for the basis ([`rules::lead_rule`]).
+    pub rule: Option<Rule>,
 }
 
 impl ReduceOptions {
-    /// Default tolerances with the given basis.
+    /// Default tolerances and lead rule with the given basis.
     pub fn new(basis: FitBasis) -> Self {
-        ReduceOptions { basis, min_tolerance: DEFAULT_MIN_TOLERANCE, fit_tolerance: DEFAULT_FIT_TOLERANCE }
+        ReduceOptions { basis, min_tolerance: DEFAULT_MIN_TOLERANCE, fit_tolerance: DEFAULT_FIT_TOLERANCE, rule: None }
     }
 }
 
@@ -172,9 +174,13 @@ pub struct Selection {
     /// What the user should know about the data (e.g. a large output mean with offset "none").
     #[serde(default)]
     pub warnings: Vec<String>,
-    /// The rule the summary leads with ([`rules::DEFAULT_RULE`]).
+    /// The rule the summary leads with ([`rules::lead_rule`]).
     #[serde(default = "default_rule")]
     pub rule: Rule,
+    /// Why `rule` leads: named by the job, or the default with or without a validation record
+    /// (empty in files of older versions).
+    #[serde(default)]
+    pub rule_why: String,
     /// Every rule's pick ([`rules`]; empty in files of older versions).
     #[serde(default)]
     pub picks: BTreeMap<Rule, RulePick>,
@@ -284,10 +290,12 @@ pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
 
     let m1 = pick(&w_minima, opts, Curve::W);
     let m2 = pick(&l1c_minima, opts, Curve::L1c);
+    let (rule, rule_why) = rules::lead_rule(opts.rule, opts.basis);
     Selection {
         basis: opts.basis,
         picks: rules::picks(rows, m1.as_ref(), m2.as_ref(), opts),
-        rule: rules::DEFAULT_RULE,
+        rule,
+        rule_why,
         m1,
         m2,
         cells,

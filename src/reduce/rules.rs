@@ -17,7 +17,7 @@
 //! Each pick names its measure, its value, the runner-up (the best model of another structure
 //! (nB, nF, delay) by the same measure) and one sentence saying why.
 
-use super::{Candidate, Pick, ReduceOptions, takes_part, tie_break};
+use super::{Candidate, FitBasis, Pick, ReduceOptions, takes_part, tie_break};
 use crate::table::{CellRow, FitKind};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -85,9 +85,48 @@ impl Rule {
     }
 }
 
-/// The rule the summary leads with unless the job says otherwise (METHOD.md 7.1 gives the
-/// benchmark behind the choice).
+/// The rule the summary leads with, with a validation record, unless the job says otherwise
+/// (METHOD.md 7.1 gives the benchmark behind the choice).
 pub const DEFAULT_RULE: Rule = Rule::PaperM2;
+
+/// The rule the summary leads with, without a validation record, unless the job says otherwise:
+/// the fit-based rules would then rank by a fit on the estimation record itself (or its spectral
+/// estimate), which grows with the orders, while RBIC penalises size (METHOD.md 7.1's one-record
+/// benchmark).
+pub const ONE_RECORD_RULE: Rule = Rule::Rbic;
+
+/// The lead rule and one sentence saying why: the job's `selection.rule` when it names one,
+/// else [`DEFAULT_RULE`] with a validation record and [`ONE_RECORD_RULE`] without.
+pub fn lead_rule(named: Option<Rule>, basis: FitBasis) -> (Rule, String) {
+    match named {
+        Some(rule) => (rule, format!("{}: named by the job's selection.rule", rule.as_str())),
+        None if basis == FitBasis::Validation => {
+            (DEFAULT_RULE, format!("{}: the default with a validation record (METHOD.md 7.1)", DEFAULT_RULE.as_str()))
+        }
+        None => (
+            ONE_RECORD_RULE,
+            format!(
+                "{}: the default without a validation record, where the fit-based rules (paper_m1, paper_m2, \
+                 validation, evidence) rank by the {}, which grows with the orders; RBIC penalises the size \
+                 (METHOD.md 7.1)",
+                ONE_RECORD_RULE.as_str(),
+                basis.describe()
+            ),
+        ),
+    }
+}
+
+/// What a fit-based rule's `why` adds when its basis is not a held-out record.
+fn in_sample_note(basis: FitBasis) -> String {
+    match basis {
+        FitBasis::Validation => String::new(),
+        _ => format!(
+            " (without a validation record the basis is the {}, which grows with the orders: \
+             this rule tends to pick the larger models; see rbic)",
+            basis.describe()
+        ),
+    }
+}
 
 /// The best model of another structure by the same measure.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -169,7 +208,7 @@ fn paper(pick: Option<&Pick>, opts: &ReduceOptions) -> RulePick {
         value: Some(p.model.score),
         model: Some(p.model.clone()),
         runner_up: runner_up(&p.model.row, &ranked),
-        why: p.rule.clone(),
+        why: format!("{}{}", p.rule, in_sample_note(opts.basis)),
     }
 }
 
@@ -244,10 +283,11 @@ fn best_fit(pool: Vec<&CellRow>, opts: &ReduceOptions, note: Option<String>) -> 
         measure: measure.to_string(),
         value: Some(model.score),
         why: format!(
-            "{note}{}: {basis} {:.3} %, {how} of {} models{versus}",
+            "{note}{}: {basis} {:.3} %, {how} of {} models{versus}{}",
             name(&model.row),
             model.score,
-            scored.len()
+            scored.len(),
+            in_sample_note(opts.basis)
         ),
         model: Some(model),
         runner_up: up,

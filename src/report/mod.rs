@@ -52,7 +52,7 @@
 
 mod figures;
 mod html;
-mod plot;
+pub(crate) mod plot;
 mod rules;
 
 use crate::data::Record;

@@ -233,7 +233,12 @@ pub fn sig(v: f64, digits: usize) -> String {
 
 /// Tick label: three significant digits without trailing zeros ("0.6", "1", "2.5e-5").
 pub fn short(v: f64) -> String {
-    let s = sig(v, 3);
+    trimmed(v, 3)
+}
+
+/// `digits` significant digits without trailing zeros ("0.6034", "0.05", "2.5e-5").
+pub fn trimmed(v: f64, digits: usize) -> String {
+    let s = sig(v, digits);
     match s.split_once('e') {
         Some((m, e)) if m.contains('.') => format!("{}e{e}", m.trim_end_matches('0').trim_end_matches('.')),
         None if s.contains('.') => s.trim_end_matches('0').trim_end_matches('.').to_string(),

@@ -43,6 +43,9 @@ pub(super) fn rules_section(s: &Review) -> Result<Section> {
             );
         }
         h.push_str("</table>\n");
+        if !sel.rule_why.is_empty() {
+            let _ = writeln!(h, "<p class=\"rule\"><b>Lead rule.</b> {}</p>", esc(&sel.rule_why));
+        }
         h.push_str(
             "<p class=\"meta\">paper_m1, paper_m2: the paper's rules (local minima of W and L1C over nF); aic, \
              aicc, bic, fpe: the least-squares fits' criteria as MATLAB defines them; raic, rbic: their robust \

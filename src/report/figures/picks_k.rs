@@ -26,6 +26,7 @@ pub fn picks_by_k_figure(
         basis: selection.basis,
         min_tolerance: selection.min_tolerance,
         fit_tolerance: selection.fit_tolerance,
+        rule: Some(selection.rule),
     };
     let (fit_name, fit_of) = (selection.basis.column(), move |r: &CellRow| selection.basis.score(r));
     // select() on the rows of one k applies exactly the reducer's rules to that k alone.
