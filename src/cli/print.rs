@@ -142,7 +142,7 @@ pub(super) fn print_rules(selection: &reduce::Selection) {
             println!("{lead}{:<11}none: {}", rule.as_str(), pick.why);
             continue;
         };
-        let k = m.row.k.map_or("-".to_string(), |k| format!("{k}"));
+        let k = m.row.k.map_or("-".to_string(), |k| crate::report::plot::trimmed(k, 4));
         let value = pick.value.map_or("-".to_string(), |v| format!("{} {v:.6}", pick.measure));
         let score = Some(m.score).filter(|v| v.is_finite());
         println!(
