@@ -118,13 +118,13 @@ pub fn pole_test(u: &[f64], y: &[f64], seams: &[usize], delay: usize) -> Option<
     test_poles(prob, fit)
 }
 
-/// The IV estimate `[b, a, F(1) c]` (the regression's own coefficients, A not stabilised),
-/// its d x d sandwich covariance, and the robust scale of its filtered equation errors over
-/// the rows used.
+/// The IV estimate `[b, a, F(1) c, nuisance]` (the regression's own coefficients, A not
+/// stabilised), the model that simulated its instruments and the prefilter of its last pass,
+/// and the robust scale of its filtered equation errors over the rows used.
 struct IvFit {
     theta: Vec<f64>,
+    instruments: Vec<f64>,
     filter: Vec<f64>,
-    cov: Vec<f64>,
     scale: f64,
     rows: usize,
 }
@@ -148,7 +148,10 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
     let mut theta = vec![0.0; dd];
     let mut filter = model[prob.nb..].to_vec();
     capped(&mut filter);
+    let (mut instruments, mut used) = (model.clone(), filter.clone());
     for _ in 0..PASSES {
+        instruments.copy_from_slice(&model);
+        used.copy_from_slice(&filter);
         plain.simulate(&model, &mut x);
         if !x.iter().all(|s| s.is_finite()) {
             return None;
@@ -178,49 +181,47 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
         filter.copy_from_slice(&model[prob.nb..]);
         capped(&mut filter);
     }
-    // The sandwich at the last pass's instruments and filter (those of the estimate's own
-    // equations): G = sum psi'(eps) z phi^T, S the Newey-West sum of h_t = z_t psi(eps_t).
-    let cut = HUBER_K * scale;
-    let lag = (4.0 * (rows as f64 / 100.0).powf(2.0 / 9.0)).floor().max(1.0) as usize;
+    Some(IvFit { theta, instruments, filter: used, scale, rows })
+}
+
+/// The sandwich variance of A(1) = `g^T theta` (g: ones at a): `g^T G^-1 S G^-T g = v^T S v`
+/// with `G^T v = g`, `G = sum psi'(eps) z phi^T` at the fit's instruments and filter, and
+/// `v^T S v` the Newey-West long-run variance of the scalar `v^T z_t psi(eps_t)` (Bartlett
+/// weights up to lag `floor(4 (N/100)^(2/9))`): two passes, no d x d sum per lag.
+fn a_at_1_variance(prob: &Problem, fit: &IvFit) -> Option<f64> {
+    let (d, dd, lags) = (prob.dim(), extended_dim(prob), lags(prob));
+    let x = Problem { offset: false, ..*prob }.simulate_vec(&fit.instruments);
+    let cut = HUBER_K * fit.scale;
+    let theta = &fit.theta;
+    let eps = |phi: &[f64]| phi[dd] - (0..dd).map(|c| phi[c] * theta[c]).sum::<f64>();
     let mut g = Mat::<f64>::zeros(dd, dd);
-    let mut s = Mat::<f64>::zeros(dd, dd);
-    let mut ring: Vec<(usize, Vec<f64>)> = vec![(usize::MAX, vec![0.0; dd]); lag + 1];
-    filtered_rows(prob, &x, &filter, lags, |t, phi, z| {
-        let zt = |i: usize| if i < d { z[i] } else { phi[i] };
-        if eps[t].abs() <= cut {
+    filtered_rows(prob, &x, &fit.filter, lags, |_, phi, z| {
+        if eps(phi).abs() <= cut {
             for i in 0..dd {
+                let zi = if i < d { z[i] } else { phi[i] };
                 for c in 0..dd {
-                    g[(i, c)] += zt(i) * phi[c];
-                }
-            }
-        }
-        let psi = eps[t].clamp(-cut, cut);
-        let start = prob.experiment_start(t);
-        let slot = t % (lag + 1);
-        ring[slot].0 = t;
-        ring[slot].1.iter_mut().enumerate().for_each(|(i, h)| *h = zt(i) * psi);
-        let ht = ring[slot].1.clone();
-        for l in 0..=lag.min(t - start) {
-            let (tp, past) = &ring[(t - l) % (lag + 1)];
-            if *tp != t - l {
-                continue;
-            }
-            // h_t h_{t-l}^T + its transpose with Bartlett's weight; lag 0 halved to count once.
-            let w = if l == 0 { 0.5 } else { 1.0 - l as f64 / (lag + 1) as f64 };
-            for i in 0..dd {
-                for j in 0..dd {
-                    s[(i, j)] += w * (ht[i] * past[j] + past[i] * ht[j]);
+                    g[(i, c)] += zi * phi[c];
                 }
             }
         }
     });
-    let lu = g.partial_piv_lu();
-    let gs = lu.solve(&s);
-    let cov = lu.solve(gs.transpose());
-    // The model's block only: the pulses' coefficients are nuisance.
-    let cov: Vec<f64> = (0..d * d).map(|ij| 0.5 * (cov[(ij / d, ij % d)] + cov[(ij % d, ij / d)])).collect();
-    theta.truncate(d);
-    cov.iter().all(|c| c.is_finite()).then_some(IvFit { theta, filter, cov, scale, rows })
+    let ones = Mat::from_fn(dd, 1, |i, _| f64::from(u8::from((prob.nb..prob.nb + prob.nf).contains(&i))));
+    let v = g.transpose().partial_piv_lu().solve(ones);
+    let lag = (4.0 * (fit.rows as f64 / 100.0).powf(2.0 / 9.0)).floor().max(1.0) as usize;
+    let mut ring = vec![(usize::MAX, 0.0); lag + 1];
+    let mut var = 0.0;
+    filtered_rows(prob, &x, &fit.filter, lags, |t, phi, z| {
+        let h = eps(phi).clamp(-cut, cut) * (0..dd).map(|i| v[(i, 0)] * if i < d { z[i] } else { phi[i] }).sum::<f64>();
+        ring[t % (lag + 1)] = (t, h);
+        var += h * h;
+        for l in 1..=lag.min(t - prob.experiment_start(t)) {
+            let (tp, past) = ring[(t - l) % (lag + 1)];
+            if tp == t - l {
+                var += 2.0 * (1.0 - l as f64 / (lag + 1) as f64) * h * past;
+            }
+        }
+    });
+    var.is_finite().then_some(var.max(0.0))
 }
 
 /// The robust scale of the equation errors of `theta` filtered by `1/F`, the pulses left out:
@@ -337,7 +338,7 @@ fn robust_scale(v: &[f64], complete: impl Fn(usize) -> bool) -> f64 {
 
 /// The test of `fit`: A(1) against 0, reported at the slowest pole.
 fn test_poles(prob: &Problem, fit: &IvFit) -> Option<PoleTest> {
-    let (nb, nf, d) = (prob.nb, prob.nf, prob.dim());
+    let (nb, nf) = (prob.nb, prob.nf);
     let a = &fit.theta[nb..nb + nf];
     let poles = oe::poles(a);
     let slowest = (0..poles.len())
@@ -345,8 +346,7 @@ fn test_poles(prob: &Problem, fit: &IvFit) -> Option<PoleTest> {
         .max_by(|&i, &j| poles[i].0.total_cmp(&poles[j].0))?;
     let pole = poles[slowest];
     let a_at_1 = 1.0 + a.iter().sum::<f64>();
-    let var: f64 = (0..nf).map(|i| (0..nf).map(|j| fit.cov[(nb + i) * d + nb + j]).sum::<f64>()).sum();
-    let std = var.max(0.0).sqrt();
+    let std = a_at_1_variance(prob, fit)?.sqrt();
     let (lo, hi) = (a_at_1 - Z95 * std, a_at_1 + Z95 * std);
     // R(1) = prod (1 - p_i) over the other poles (real for a conjugate pair).
     let rest = poles.iter().enumerate().filter(|&(i, _)| i != slowest).fold((1.0, 0.0), |acc: (f64, f64), (_, p)| {
