@@ -26,17 +26,18 @@
 //! The order: the smaller BIC `N ln s^2 + dim ln N` of the filtered equation errors (an
 //! over-parameterised fit is near singular along the common factor of A and B).
 //!
-//! The covariance is the M-estimator's sandwich `C = G^-1 S G^-T`, `G = sum psi'(eps) z
-//! phi^T`, `S` the Newey-West long-run covariance of `h_t = z_t psi(eps_t)` (Bartlett weights
-//! up to lag `floor(4 (N/100)^(2/9))`), so coloured noise is allowed for.
-//!
-//! The decision is on `A(1) = 1 + a_1 + .. + a_n`, which is 0 exactly when A has a root at 1
-//! and negative when it has one real root above 1; it is linear in theta, so its standard
-//! error `sqrt(1^T C_AA 1)` needs no linearisation, and it stays well determined where single
-//! roots do not (two close poles, a double integrator). The warning fires when the 95 %
-//! interval `A(1) +- 1.96 se` reaches 0 or lies below it. It is reported as the slowest pole p
-//! (largest real part) with the interval `1 - [A(1) +- 1.96 se] / R(1)`, `R(1) = prod (1 -
-//! p_i)` over the other poles: the delta method of `p = 1 - A(1)/R(1)` with those held.
+//! The decision is on `A(1) = 1 + a_1 + .. + a_n = g^T theta`, which is 0 exactly when A has a
+//! root at 1 and negative when it has one real root above 1; it is linear in theta, so the
+//! M-estimator's sandwich `C = G^-1 S G^-T` (`G = sum psi'(eps) z phi^T`, `S` the Newey-West
+//! long-run covariance of `h_t = z_t psi(eps_t)`, Bartlett weights up to lag
+//! `floor(4 (N/100)^(2/9))`, so coloured noise is allowed for) gives its variance `g^T C g =
+//! v^T S v`, `G^T v = g`, without linearisation: the long-run variance of the one series `v^T
+//! h_t`. A(1) stays well determined where single roots do not (two close poles, a double
+//! integrator: a root moves with the square root of a coefficient there). The warning fires
+//! when the 95 % interval `A(1) +- 1.96 se` reaches 0 or lies below it. It is reported as the
+//! slowest pole p (largest real part) with the interval `1 - [A(1) +- 1.96 se] / R(1)`, `R(1)
+//! = prod (1 - p_i)` over the other poles: the delta method of `p = 1 - A(1)/R(1)` with those
+//! held.
 //!
 //! What no test can do: a stable pole whose time constant is as long as the record or longer
 //! gives data that an integrator explains as well; there the warning may fire (METHOD.md 7.3
