@@ -175,7 +175,7 @@ fn fit_records(
     val_path: Option<PathBuf>,
 ) -> Result<FitReport> {
     let job::Inputs { est, val, levels, warnings } =
-        job::inputs_of_records(est, val, req.offset, (req.nb, req.nf, req.delay))?;
+        job::inputs_of_records(est, val, req.offset, (req.nb, req.nf, req.delay), req.delay)?;
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
             let s = spectral::estimate_within(&est.u, &est.y, &est.seams, ts, req.spectrum)?;

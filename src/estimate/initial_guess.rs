@@ -17,7 +17,7 @@ use faer::prelude::*;
 /// `[-s2_{t-j}]_{j=1..nf}`, and with an output offset a column of ones: `F (y - c) = B u` is
 /// `y = B u - sum f_j y_{t-j} + F(1) c`, linear in `F(1) c`. Column `dim` is `y_t` itself
 /// (the right-hand side rides along as one more column).
-fn regressor(prob: &Problem, s2: &[f64], t: usize, c: usize) -> f64 {
+pub(super) fn regressor(prob: &Problem, s2: &[f64], t: usize, c: usize) -> f64 {
     let (nb, nf, delay) = (prob.nb, prob.nf, prob.delay);
     // No lag reaches back across the start of the experiment t belongs to.
     let t0 = prob.experiment_start(t);
@@ -55,7 +55,7 @@ fn r_factor(n: usize, cols: usize, a: impl Fn(usize, usize) -> f64) -> Mat<f64> 
 
 /// `Z^T A` for the n-row matrices `Z = [z(t, i)]` (`zc` columns) and `A = [a(t, c)]` (`ac`
 /// columns), summed block by block.
-fn cross_product(
+pub(super) fn cross_product(
     n: usize,
     zc: usize,
     ac: usize,

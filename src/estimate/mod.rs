@@ -20,6 +20,7 @@
 //! problem        record + structure, Solution                  options, normal, oe
 //! initial_state  free response, model output                   linalg
 //! initial_guess  ARX + IV starts                                problem
+//! integrating    the record's integrating-plant test (IV pole)  problem, initial_guess, cancellation
 //! separable      variable projection inner problem             problem, linalg, normal, huber
 //! residual_tests whiteness and independence of the residuals    kernels
 //! evidence       covariance, residual tests                    problem, normal, huber, cancellation, residual_tests
@@ -38,6 +39,7 @@ pub mod fit;
 pub mod huber;
 pub mod initial_guess;
 pub mod initial_state;
+pub mod integrating;
 pub mod least_squares;
 pub mod linalg;
 pub mod normal;

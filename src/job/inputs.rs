@@ -17,18 +17,20 @@ pub struct Inputs {
 
 /// Read the job's data files and check them against the largest orders of the grid.
 pub fn load_inputs(vj: &ValidJob) -> Result<Inputs> {
-    read_inputs(&vj.job.data, vj.job.validation.as_ref(), vj.job.offset, vj.largest())
+    read_inputs(&vj.job.data, vj.job.validation.as_ref(), vj.job.offset, vj.largest(), vj.delays[0])
 }
 
 /// The one loader of records, for a job and for `oesweep fit`: read the estimation and the
 /// validation record as their specs say (the validation output column resolved, see
 /// [`resolve_validation`]), check both against the largest model `(nb, nf, delay)`, and take
-/// out the levels of `offset` ([`Levels::of`], computed here only).
+/// out the levels of `offset` ([`Levels::of`], computed here only). `delay` is the one of the
+/// integrating-plant test (the grid's smallest).
 pub fn read_inputs(
     data: &Records,
     validation: Option<&Records>,
     offset: Offset,
     (nb_max, nf_max, delay_max): (usize, usize, usize),
+    delay: usize,
 ) -> Result<Inputs> {
     // Each experiment long enough on its own: the simulation restarts in every one.
     let concat = |specs: &Records| -> Result<Record> {
@@ -45,7 +47,7 @@ pub fn read_inputs(
     };
     let est = concat(data)?;
     let val = validation.map(concat).transpose()?;
-    inputs_of_records(est, val, offset, (nb_max, nf_max, delay_max))
+    inputs_of_records(est, val, offset, (nb_max, nf_max, delay_max), delay)
 }
 
 /// The records of `data` or `validation` as read, one per experiment.
@@ -54,12 +56,13 @@ fn read_experiments(specs: &Records) -> Result<Vec<Record>> {
 }
 
 /// [`read_inputs`] of records already in memory: checked against the largest model, levels
-/// taken out, the data's warnings.
+/// taken out, the data's warnings (the integrating-plant test with input delay `delay`).
 pub fn inputs_of_records(
     mut est: Record,
     mut val: Option<Record>,
     offset: Offset,
     (nb_max, nf_max, delay_max): (usize, usize, usize),
+    delay: usize,
 ) -> Result<Inputs> {
     data::check_for_model(&est, nb_max, nf_max, delay_max)?;
     if let Some(rec) = &val {
@@ -67,7 +70,7 @@ pub fn inputs_of_records(
     }
     let levels = Levels::of(offset, &est);
     let mut warnings: Vec<String> = data::levels::offset_warning(offset, &est).into_iter().collect();
-    warnings.extend(integrating_warning(&est));
+    warnings.extend(integrating_warning(&est, delay));
     levels.apply(&mut est);
     if let Some(v) = val.as_mut() {
         levels.apply(v);
@@ -75,24 +78,36 @@ pub fn inputs_of_records(
     Ok(Inputs { est, val, levels, warnings })
 }
 
-/// Slope of log |G| against log f towards 0 Hz below which the plant looks integrating: an
-/// integrator gives -1, a plant with a static gain 0 (METHOD.md 7.2).
-const INTEGRATING_SLOPE: f64 = -0.7;
-
-/// A warning when the estimation record's spectral estimate rises like 1/f towards 0 Hz.
-fn integrating_warning(est: &Record) -> Option<String> {
-    let spectrum =
-        crate::spectral::estimate_within(&est.u, &est.y, &est.seams, 1.0, crate::spectral::SpectrumMethod::Welch)
-            .ok()?;
-    let slope = crate::spectral::low_frequency_slope(&spectrum)?;
-    (slope < INTEGRATING_SLOPE).then(|| {
-        format!(
-            "the spectral estimate of {} rises like f^{slope:.2} towards 0 Hz: the plant looks integrating (or \
-             unstable), and an output-error model forces a stable model onto it (identify from the differenced \
-             output, or in closed loop)",
-            est.path.display()
-        )
-    })
+/// A warning when a low-order IV fit of the estimation record has a pole that may be 1, or a
+/// real one above it (`estimate::integrating`, METHOD.md 7.3). Taken before the levels come
+/// out: the test fits its own constant.
+fn integrating_warning(est: &Record, delay: usize) -> Option<String> {
+    let test = crate::estimate::integrating::pole_test(&est.u, &est.y, &est.seams, delay)?;
+    if !test.integrating {
+        return None;
+    }
+    // Enough decimals that an interval's ends differ.
+    let decimals = |w: f64| (-w.log10()).ceil().clamp(3.0, 8.0) as usize + 1;
+    let (p, a, sd) = (test.pole, test.a_at_1, test.a_at_1_std);
+    let what = match test.interval {
+        Some((lo, hi)) => {
+            let dp = decimals(hi - lo);
+            let place = if lo > 1.0 { ", above 1" } else { " that may be 1" };
+            format!("a pole at {:.dp$} (95 % interval {lo:.dp$}..{hi:.dp$}){place}", p.0)
+        }
+        None => format!(
+            "its slowest poles at {:.4} +- {:.4}i and A(1) = {a:.3e} (95 % interval {:.3e}..{:.3e}), 0 for a pole at 1",
+            p.0,
+            p.1.abs(),
+            a - 1.96 * sd,
+            a + 1.96 * sd
+        ),
+    };
+    Some(format!(
+        "a low-order IV fit of {} has {what}: the plant looks integrating (or unstable), and an output-error \
+         model forces a stable model onto it (identify from the differenced output, or in closed loop)",
+        est.path.display()
+    ))
 }
 
 /// The records of a checked job, as read from the files (levels not taken out): for the

@@ -278,29 +278,6 @@ impl SpectralEstimate {
     }
 }
 
-/// Bins above 0 Hz over which [`low_frequency_slope`] looks for an integrator's 1/f.
-const LOW_BINS: usize = 8;
-
-/// The slope of log |G| against log f over the lowest [`LOW_BINS`] bins above 0 Hz, when |G|
-/// is largest at the lowest of them (None otherwise, or without enough usable bins): about -1
-/// for an integrating plant (|G| ~ 1/f towards 0 Hz), about 0 for a plant with a static gain.
-pub fn low_frequency_slope(est: &SpectralEstimate) -> Option<f64> {
-    let pts: Vec<(f64, f64)> = (1..est.freq_hz.len())
-        .map(|k| (est.freq_hz[k], est.re[k].hypot(est.im[k])))
-        .filter(|(f, g)| f.is_finite() && *f > 0.0 && g.is_finite() && *g > 0.0)
-        .take(LOW_BINS)
-        .map(|(f, g)| (f.ln(), g.ln()))
-        .collect();
-    if pts.len() < LOW_BINS || pts.iter().any(|p| p.1 > pts[0].1) {
-        return None;
-    }
-    let m = pts.len() as f64;
-    let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / m, pts.iter().map(|p| p.1).sum::<f64>() / m);
-    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
-    (sxx > 0.0).then(|| sxy / sxx)
-}
-
 /// Band fit of the OE model `(b, f, delay)` against the spectral estimate over `bins` (from
 /// [`SpectralEstimate::band`]): `100 (1 - ||G_model - G_spec|| / ||G_spec||)` in percent.
 ///
