@@ -1,7 +1,7 @@
 //! The warnings that say when the answer is doubtful (METHOD.md 7.2), on cases made for them:
-//! a true order outside the grid (the pick on the grid's edge) and an integrating plant (the
-//! spectral estimate rising like 1/f and picks on the stability boundary); and none on a plant
-//! the grid contains.
+//! a true order outside the grid (the pick on the grid's edge, "widen the grid"), an integrating
+//! plant (a low-order fit's pole that may be 1, and picks on the stability boundary); none on a
+//! plant the grid contains, and from one record the lead rule `rbic` without a "widen" warning.
 
 mod common;
 
@@ -101,7 +101,7 @@ fn one_record_leads_with_rbic_and_does_not_ask_to_widen_a_grid_that_holds_the_pl
 }
 
 #[test]
-fn an_integrating_plant_is_named_by_its_spectrum_and_its_poles() {
+fn an_integrating_plant_is_named_by_its_low_order_fit_and_its_poles() {
     // y_t = y_{t-1} + 0.05 u_{t-1} + noise: a pole at 1.
     let n = 3000;
     let u = binary_input(n, 5, 1.0, 3);
