@@ -18,8 +18,8 @@
 //! ```
 //!
 //! The two sides are averaged so that a gradient left by a solver that stopped short of the
-//! minimum cancels. The fit is doubtful when some ratio lies outside [`RATIO_BAND`], when a
-//! step lowers the criterion (a lower point within the region: another basin, or no minimum
+//! minimum cancels. The fit is doubtful when some ratio lies below [`RATIO_BAND`] (the
+//! criterion flatter than the std say), when a step lowers the criterion (a lower point within the region: another basin, or no minimum
 //! here), or when a step leaves the stability region (F unstable: the region reaches the
 //! boundary). `c` is [`STEP_STD`]: the marginal 95 % interval of each combination.
 
@@ -31,6 +31,10 @@ use crate::oe;
 
 /// Curvature ratios inside this band count as quadratic. A factor 2 in curvature is a factor
 /// sqrt(2) in a standard deviation; wider means the reported std is wrong by more than that.
+/// Only the lower end makes a doubt: a criterion that rises faster than the covariance
+/// predicts (a curved model, steps of 2 std in lightly damped poles) has a smaller region
+/// than the std say, which errs on the safe side; on the 24-parameter Monte Carlo of
+/// METHOD.md 17.2 the upper end flagged fits that lay within 2 std of the truth.
 pub const RATIO_BAND: (f64, f64) = (0.5, 2.0);
 
 /// Steps of this many standard deviations along each eigen-direction (~the 95 % interval).
@@ -68,15 +72,11 @@ impl QuadraticCheck {
                  the fit is not at the bottom of a quadratic basin",
                 self.drop
             ))
-        } else if self.min_ratio < RATIO_BAND.0 || self.max_ratio > RATIO_BAND.1 || !self.min_ratio.is_finite() {
-            let worst = if self.min_ratio < RATIO_BAND.0 || !self.min_ratio.is_finite() {
-                self.min_ratio
-            } else {
-                self.max_ratio
-            };
+        } else if !(self.min_ratio >= RATIO_BAND.0) {
             Some(format!(
-                "its criterion is far from quadratic over its 95 % confidence region (W rises {worst:.2}x the \
-                 quadratic prediction along one direction)"
+                "its criterion is far from quadratic over its 95 % confidence region (W rises {:.2}x the \
+                 quadratic prediction along one direction)",
+                self.min_ratio
             ))
         } else {
             None
