@@ -29,7 +29,7 @@
 //! least_squares  steps 1-2: theta_LS and sigma                 fit, initial_guess, solver
 //! chains         step 3 over k: continuation chains            fit, least_squares, solver
 //! single         one model at one k, boundary starts           chains, fit, least_squares, initial_guess
-//! quadratic      is W quadratic over the confidence region?    evidence, huber, problem
+//! quadratic      is W quadratic over the confidence region?    evidence, huber, least_squares, problem
 //! bootstrap      percentile intervals of the whole estimation  single
 //! ```
 
