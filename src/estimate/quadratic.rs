@@ -72,7 +72,7 @@ impl QuadraticCheck {
                  the fit is not at the bottom of a quadratic basin",
                 self.drop
             ))
-        } else if !(self.min_ratio >= RATIO_BAND.0) {
+        } else if self.min_ratio.is_nan() || self.min_ratio < RATIO_BAND.0 {
             Some(format!(
                 "its criterion is far from quadratic over its 95 % confidence region (W rises {:.2}x the \
                  quadratic prediction along one direction)",
