@@ -21,6 +21,7 @@ pub mod progress;
 pub mod reduce;
 pub mod report;
 pub mod results;
+pub(crate) mod rng;
 pub mod shard;
 pub mod simulate;
 pub mod slurm;

@@ -207,6 +207,11 @@ pub struct FitArgs {
     /// b and the offset solved for).
     #[arg(long, value_enum, default_value = "lm")]
     pub method: MethodArg,
+    /// Bootstrap the whole estimation B times (parametric, residual blocks; refits in
+    /// parallel) for percentile intervals of the parameters and of |G| and its phase
+    /// (METHOD.md 17.3). `--bootstrap` alone: B = 200.
+    #[arg(long, value_name = "B", num_args = 0..=1, default_missing_value = "200")]
+    pub bootstrap: Option<usize>,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,

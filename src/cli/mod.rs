@@ -129,6 +129,7 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
             method: a.method.into(),
             ..Default::default()
         },
+        bootstrap: a.bootstrap,
     };
     let report = engine::fit(&req)?;
     for w in &report.warnings {

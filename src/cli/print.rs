@@ -56,7 +56,48 @@ pub(super) fn print_fit_summary(r: &FitReport) {
         None => println!("offset: none (the paper's model)"),
     }
     println!("initial state of the judged fits: {}", r.initial_state.as_str());
+    println!("Huber fit from start '{}'", r.start);
+    if let Some(b) = &r.bootstrap {
+        print_bootstrap(r, b);
+    }
     println!("({:.3} s)", r.seconds);
+}
+
+/// The bootstrap's intervals beside the sandwich std (METHOD.md 17.3).
+fn print_bootstrap(r: &FitReport, b: &crate::estimate::bootstrap::Bootstrap) {
+    let pct = 100.0 * b.level;
+    println!();
+    println!(
+        "bootstrap: {} replicates ({} failed, {} on the stability boundary), residual blocks of {}, seed {}",
+        b.replicates, b.failed, b.boundary, b.block, b.seed
+    );
+    println!(
+        "{:<10}{:>15}{:>12}{:>12}{:>29}",
+        "parameter",
+        "value",
+        "std",
+        "boot std",
+        format!("{pct} % percentile interval")
+    );
+    let he = &r.huber.assessment.evidence;
+    let values = r.huber.theta();
+    let stds: Vec<f64> = he.b_std.iter().chain(&he.f_std).copied().chain(he.offset_std).collect();
+    for (i, (name, iv)) in r.parameters.iter().zip(&b.parameters).enumerate() {
+        let (v, s) = (values.get(i).copied().unwrap_or(f64::NAN), stds.get(i).copied().unwrap_or(f64::NAN));
+        println!("{name:<10}{v:>15.6e}{s:>12.2e}{:>12.2e}    [{:.6e}, {:.6e}]", iv.std, iv.lower, iv.upper);
+    }
+    let hz = |w: f64| {
+        r.ts.map_or(format!("{:.4} rad/sample", w), |ts| format!("{:.4} Hz", w / (std::f64::consts::TAU * ts)))
+    };
+    println!("{:<22}{:>36}{:>36}", "frequency", "|G| interval", "phase interval (deg)");
+    for ((w, m), p) in b.frequencies.iter().zip(&b.magnitude).zip(&b.phase_deg) {
+        println!(
+            "{:<22}{:>36}{:>36}",
+            hz(*w),
+            format!("[{:.5e}, {:.5e}]", m.lower, m.upper),
+            format!("[{:.2}, {:.2}]", p.lower, p.upper)
+        );
+    }
 }
 
 pub(super) fn describe_grid(p: &Prepared) -> String {

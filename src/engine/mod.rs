@@ -14,7 +14,7 @@
 use crate::checkpoint::{self, Manifest, StopOnSignal, Writer};
 
 use crate::error::{Error, Result};
-use crate::estimate::{self, Problem};
+use crate::estimate;
 use crate::export;
 use crate::job::{self, Inputs, ValidJob};
 use crate::plan::Plan;
@@ -35,6 +35,7 @@ use std::time::Duration;
 mod beyond;
 mod export_model;
 mod single;
+mod uncertainty;
 
 pub use export_model::{PickSpec, export_model};
 pub use single::{
@@ -395,6 +396,7 @@ fn write_results(out: &Path, job: &ValidJob, rows: &[CellRow], inputs: Option<&I
         _ => Vec::new(),
     };
     selection.warnings.extend(reduce::doubts::pick_warnings(&selection, rows, &grid, &beyond));
+    selection.warnings.extend(inputs.map(|i| uncertainty::pick_doubts(&selection, i)).unwrap_or_default());
     if let Some(inputs) = inputs {
         for pick in [selection.m1.as_mut(), selection.m2.as_mut()].into_iter().flatten() {
             pick.covariance = covariance_of(&pick.model, inputs);
@@ -412,19 +414,10 @@ fn write_results(out: &Path, job: &ValidJob, rows: &[CellRow], inputs: Option<&I
 /// Gram matrix is singular): the model as the run fitted it, levels taken out and the offset a
 /// parameter when the job estimated it; robust for a Huber row (METHOD.md 10).
 fn covariance_of(c: &CellRow, inputs: &Inputs) -> Option<Vec<f64>> {
-    let prob = Problem {
-        u: &inputs.est.u,
-        y: &inputs.est.y,
-        nb: c.key.nb as usize,
-        nf: c.key.nf as usize,
-        delay: c.key.delay as usize,
-        offset: inputs.levels.mode.estimated(),
-        seams: &inputs.est.seams,
-    };
+    let prob = uncertainty::problem(c, inputs);
     let theta = estimate::theta_of(&c.fit.b, &c.fit.f, inputs.levels.estimated_c(c.fit.offset));
     let yhat = prob.simulate_vec(&theta);
-    let loss = c.fit.gamma.map_or(estimate::Loss::LeastSquares, |gamma| estimate::Loss::Huber { gamma });
-    estimate::evidence::covariance(&prob, &theta, loss, &yhat)
+    estimate::evidence::covariance(&prob, &theta, uncertainty::loss(c), &yhat)
 }
 
 /// How [`merge`] ended.

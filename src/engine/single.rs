@@ -38,6 +38,9 @@ pub struct FitRequest {
     pub ts: Option<f64>,
     pub band: Option<(f64, f64)>,
     pub solver: SolverOptions,
+    /// Bootstrap replicates of the whole estimation (`--bootstrap B`; None: none,
+    /// METHOD.md 17.3).
+    pub bootstrap: Option<usize>,
 }
 
 /// Report of [`fit`] (`fit --json` prints it).
@@ -50,6 +53,8 @@ pub struct FitReport {
     pub nb: usize,
     pub nf: usize,
     pub delay: usize,
+    /// Sampling period (None: not given).
+    pub ts: Option<f64>,
     pub band_hz: Option<(f64, f64)>,
     /// The offset mode, and the input level u0 taken out (the model is `B/F (u - u0) + offset`).
     pub offset_mode: data::Offset,
@@ -66,6 +71,14 @@ pub struct FitReport {
     /// export` gives them.
     pub parameters: Vec<String>,
     pub covariance: Option<Vec<Vec<f64>>>,
+    /// Where the Huber fit returned started (`ls`, `ls_alt`, or a boundary start:
+    /// `contracted`, `guess`, `walk`; METHOD.md 17.1).
+    pub start: &'static str,
+    /// The check of the criterion over the fit's confidence region (METHOD.md 17.2; None
+    /// without a covariance).
+    pub quadratic: Option<estimate::quadratic::QuadraticCheck>,
+    /// Percentile intervals of the whole estimation (`--bootstrap B`, METHOD.md 17.3).
+    pub bootstrap: Option<estimate::bootstrap::Bootstrap>,
     pub seconds: f64,
     pub ls: LsFit,
 }
@@ -98,6 +111,7 @@ impl FitRequest {
             ts: Some(ts),
             band: None,
             solver: SolverOptions::default(),
+            bootstrap: None,
         }
     }
 
@@ -124,6 +138,12 @@ impl FitRequest {
         }
         if self.solver.max_iterations == 0 {
             return Err(Error::Invalid("--max-iterations must be at least 1".into()));
+        }
+        if self.bootstrap.is_some_and(|b| b < estimate::bootstrap::MIN_REPLICATES) {
+            return Err(Error::Invalid(format!(
+                "--bootstrap must be at least {}",
+                estimate::bootstrap::MIN_REPLICATES
+            )));
         }
         Ok(())
     }
@@ -202,14 +222,29 @@ fn fit_records(
     };
     let mut ws = Workspace::new();
     let t0 = Instant::now();
-    let mut ls = estimate::fit_ls(&prob, &judge, &req.solver, &mut ws);
-    let (mut huber, _) = estimate::fit_huber_multi(&prob, &ls, req.k, &judge, &req.solver, &mut ws);
+    let estimate::OneFit { mut ls, mut huber, start, .. } =
+        estimate::fit_one(&prob, req.k, &judge, &req.solver, &mut ws);
     let seconds = t0.elapsed().as_secs_f64();
     let theta = huber.theta();
     let loss = estimate::Loss::Huber { gamma: huber.gamma };
     let dim = theta.len();
-    let covariance = estimate::evidence::covariance(&prob, &theta, loss, &prob.simulate_vec(&theta))
-        .map(|c| c.chunks(dim).map(<[f64]>::to_vec).collect());
+    let cov = estimate::evidence::covariance(&prob, &theta, loss, &prob.simulate_vec(&theta));
+    let quadratic = cov.as_ref().map(|c| estimate::quadratic::check(&prob, &theta, loss, c));
+    let mut warnings = warnings;
+    let model = format!("OE({},{}) delay {}", req.nb, req.nf, req.delay);
+    warnings.extend(estimate::quadratic::doubt(
+        &model,
+        huber.assessment.max_pole_radius,
+        quadratic.as_ref(),
+        "--bootstrap B",
+    ));
+    let covariance = cov.map(|c| c.chunks(dim).map(<[f64]>::to_vec).collect());
+    let bootstrap = req.bootstrap.map(|replicates| {
+        let one = estimate::OneFit { ls: ls.clone(), huber: huber.clone(), start, fits: 0 };
+        let settings = estimate::bootstrap::Settings { replicates, ..Default::default() };
+        // The offset, when a parameter, is estimated in the data's units: nothing to convert.
+        estimate::bootstrap::run(&prob, &one, &settings, &req.solver)
+    });
     let parameters = crate::export::model::parameter_names(req.nb, req.nf, req.offset.estimated());
     // Reported in the data's units, as in the table.
     ls.offset = levels.offset(ls.offset);
@@ -222,6 +257,7 @@ fn fit_records(
         nb: req.nb,
         nf: req.nf,
         delay: req.delay,
+        ts: req.ts,
         band_hz: req.band,
         offset_mode: req.offset,
         input_level: levels.u0,
@@ -232,6 +268,9 @@ fn fit_records(
         huber,
         parameters,
         covariance,
+        start,
+        quadratic,
+        bootstrap,
         seconds,
         ls,
     })

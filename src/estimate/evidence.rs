@@ -148,7 +148,7 @@ pub fn evidence(
 }
 
 /// `mean psi_g'(e)`: 1 for least squares, the share of the L2 set for Huber.
-fn slope(prob: &Problem, loss: Loss, yhat: &[f64]) -> f64 {
+pub(crate) fn slope(prob: &Problem, loss: Loss, yhat: &[f64]) -> f64 {
     match loss {
         Loss::LeastSquares => 1.0,
         Loss::Huber { gamma } => {

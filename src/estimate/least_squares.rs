@@ -70,12 +70,7 @@ pub fn fit_ls_nested(
     let theta = &best.theta;
     let radius = crate::oe::max_pole_radius(prob.split(theta).1);
     if opts.huber_extra_starts > 0 && radius > BOUNDARY && radius.is_finite() {
-        let mut c = theta.clone();
-        let rho = CONTRACTED / radius;
-        for (j, v) in prob.f_mut(&mut c).iter_mut().enumerate() {
-            *v *= rho.powi(j as i32 + 1);
-        }
-        alternatives.push(c);
+        alternatives.push(contracted(prob, theta));
     }
     let mut fit = ls_from_solution(prob, best.clone(), judge, opts, ws);
     fit.alternatives = alternatives;
@@ -184,7 +179,23 @@ pub const BOUNDARY: f64 = 0.999;
 /// Radius the poles of a boundary fit are scaled to for that extra start: inside enough that
 /// the Huber fit moves freely, close enough to stay in the basin of theta_LS. Dropping the
 /// start saved only 6-10 % of the Huber phase (issue 19); no other radius was measured.
-const CONTRACTED: f64 = 0.99;
+pub const CONTRACTED: f64 = 0.99;
+
+/// `theta` with every pole scaled to radius at most [`CONTRACTED`], `f_j <- f_j rho^j` with
+/// `rho = CONTRACTED / r` (r the largest pole radius): the start just inside the stability
+/// boundary of a fit that ended on it.
+pub fn contracted(prob: &Problem, theta: &[f64]) -> Vec<f64> {
+    let mut c = theta.to_vec();
+    let radius = crate::oe::max_pole_radius(prob.split(theta).1);
+    if radius > CONTRACTED && radius.is_finite() {
+        let rho = CONTRACTED / radius;
+        for (j, v) in prob.f_mut(&mut c).iter_mut().enumerate() {
+            *v *= rho.powi(j as i32 + 1);
+        }
+    }
+    c
+}
+
 /// Least-squares minima whose criteria differ by less than this (relative) are one minimum:
 /// well above the solver's `ftol` (1e-10), so two runs that converged to the same minimum
 /// count once, and well below [`crate::estimate::Chains::MERGE`] (1e-6), because a runner-up

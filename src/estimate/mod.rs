@@ -29,8 +29,12 @@
 //! fit            LsFit, HuberFit, assessment                   solver, evidence, initial_state
 //! least_squares  steps 1-2: theta_LS and sigma                 fit, initial_guess, solver
 //! chains         step 3 over k: continuation chains            fit, least_squares, solver
+//! single         one model at one k, boundary starts           chains, fit, least_squares, initial_guess
+//! quadratic      is W quadratic over the confidence region?    evidence, huber, least_squares, problem
+//! bootstrap      percentile intervals of the whole estimation  single
 //! ```
 
+pub mod bootstrap;
 pub mod cancellation;
 pub mod chains;
 pub mod criteria;
@@ -45,8 +49,10 @@ pub mod linalg;
 pub mod normal;
 pub mod options;
 pub mod problem;
+pub mod quadratic;
 pub mod residual_tests;
 pub mod separable;
+pub mod single;
 pub mod solver;
 pub mod workspace;
 
@@ -57,4 +63,5 @@ pub use initial_state::InitialState;
 pub use least_squares::{exploration_head, fit_ls, fit_ls_nested};
 pub use options::{HuberHessian, SolverMethod, SolverOptions, Termination};
 pub use problem::{Problem, Solution};
+pub use single::{OneFit, fit_one};
 pub use workspace::Workspace;

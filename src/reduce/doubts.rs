@@ -179,7 +179,8 @@ pub fn pick_warnings(sel: &Selection, rows: &[CellRow], grid: &GridBounds, beyon
             out.push(format!(
                 "{model} has a pole at radius {radius:.4}, on the stability boundary: the plant looks integrating \
                  or unstable, and an output-error model forces a stable model onto it (identify from the \
-                 differenced output, or in closed loop)"
+                 differenced output, or in closed loop); its reported standard deviations are local and may \
+                 understate the uncertainty (METHOD.md 17)"
             ));
         }
     }

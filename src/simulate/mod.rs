@@ -34,10 +34,9 @@ use crate::error::{Error, Result};
 use crate::oe;
 
 mod prbs;
-mod rng;
 
+use crate::rng::Xoshiro256;
 pub use prbs::{PRBS_BITS, prbs};
-use rng::Xoshiro256;
 
 /// An OE system `y = q^-delay B(q^-1)/F(q^-1) u` as stored in a system JSON file:
 /// `{"b": [b_1, ..., b_nB], "f": [f_1, ..., f_nF], "delay": 1}` (`f` without the leading 1 of

@@ -1,0 +1,186 @@
+//! Uncertainty that says when the fit sits elsewhere (METHOD.md 17): the check of the
+//! criterion over the fit's confidence region, and the bootstrap of the whole estimation on
+//! small models whose answer is known.
+
+mod common;
+
+use common::*;
+use oesweep::estimate::{self, Judge, Loss, Problem, SolverOptions, Workspace, bootstrap, quadratic};
+use oesweep::oe;
+
+/// OE(2,2) records of N samples: binary input, Gaussian noise `sd`, seed `seed`.
+fn record(b: &[f64], f: &[f64], n: usize, sd: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
+    let u = binary_input(n, 1, 1.0, seed);
+    let mut r = Lcg(seed + 17);
+    let y = oe::simulate_vec(b, f, 1, &u).into_iter().map(|v| v + sd * r.normal()).collect();
+    (u, y)
+}
+
+fn check_of(prob: &Problem, theta: &[f64], loss: Loss) -> quadratic::QuadraticCheck {
+    let cov = estimate::evidence::covariance(prob, theta, loss, &prob.simulate_vec(theta)).expect("a covariance");
+    quadratic::check(prob, theta, loss, &cov)
+}
+
+#[test]
+fn a_well_identified_fit_is_quadratic_over_its_confidence_region() {
+    let (b, f) = oe22();
+    let (u, y) = record(&b, &f, 5000, 0.1, 3);
+    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: false, seams: &[] };
+    let mut ws = Workspace::new();
+    for k in [0.5, 1.5] {
+        let one = estimate::fit_one(&prob, k, &Judge::default(), &SolverOptions::default(), &mut ws);
+        let h = &one.huber;
+        let c = check_of(&prob, &h.theta(), Loss::Huber { gamma: h.gamma });
+        assert!(!c.doubtful(), "k = {k}: {c:?}");
+        // The covariance's own curvature, to a few per cent.
+        assert!(c.min_ratio > 0.9 && c.max_ratio < 1.1, "k = {k}: {c:?}");
+        assert_eq!(quadratic::doubt("OE(2,2)", h.assessment.max_pole_radius, Some(&c), "B"), None);
+    }
+}
+
+#[test]
+fn a_fit_with_a_lower_point_in_its_region_or_on_the_boundary_is_doubtful() {
+    let (b, f) = oe22();
+    let (u, y) = record(&b, &f, 5000, 0.1, 4);
+    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: false, seams: &[] };
+    let mut ws = Workspace::new();
+    let one = estimate::fit_one(&prob, 1.5, &Judge::default(), &SolverOptions::default(), &mut ws);
+    let loss = Loss::Huber { gamma: one.huber.gamma };
+    // Three standard deviations of b1 off the minimum: a lower criterion within reach.
+    let theta = one.huber.theta();
+    let sd = one.huber.assessment.evidence.b_std[0];
+    let off: Vec<f64> = theta.iter().enumerate().map(|(i, v)| if i == 0 { v + 3.0 * sd } else { *v }).collect();
+    let c = check_of(&prob, &off, loss);
+    assert!(c.drop > 0.0 && c.doubtful(), "{c:?}");
+    let w = quadratic::doubt("OE(2,2) delay 1", 0.9, Some(&c), "--bootstrap B").expect("a doubt");
+    assert!(w.starts_with("OE(2,2) delay 1: the criterion is lower 2 std away"), "{w}");
+    assert!(w.ends_with("may understate the uncertainty; use --bootstrap B"), "{w}");
+    // A pick on the stability boundary, whatever the check says.
+    let at_edge = quadratic::doubt("OE(2,2) delay 1", 0.9995, None, "B").expect("a doubt");
+    assert!(at_edge.contains("radius 0.9995, on the stability boundary"), "{at_edge}");
+}
+
+#[test]
+fn an_over_parameterised_fit_is_far_from_quadratic() {
+    // OE(3,3) on OE(2,2) data: an extra pole and zero that (nearly) cancel and move together
+    // along a direction the data barely determine; the criterion is not quadratic there.
+    let (b, f) = oe22();
+    let (u, y) = record(&b, &f, 2000, 0.1, 5);
+    let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: false, seams: &[] };
+    let mut ws = Workspace::new();
+    let ls = estimate::fit_ls(&prob, &Judge::default(), &SolverOptions::default(), &mut ws);
+    let c = check_of(&prob, &ls.theta(), Loss::LeastSquares);
+    assert!(c.doubtful(), "{c:?}");
+}
+
+/// A finite-impulse-response model (nF = 0) is linear in its parameters: the least-squares
+/// estimate (the Huber fit at large k) has covariance sigma^2 (Phi^T Phi)^-1 exactly, the
+/// sandwich's value. The bootstrap's standard deviations must find it.
+#[test]
+fn the_bootstrap_of_a_linear_model_finds_its_known_covariance() {
+    let b = [0.8, -0.4, 0.2];
+    let (u, y) = record(&b, &[], 1000, 0.2, 6);
+    let prob = Problem { u: &u, y: &y, nb: 3, nf: 0, delay: 1, offset: false, seams: &[] };
+    let opts = SolverOptions::default();
+    let mut ws = Workspace::new();
+    let one = estimate::fit_one(&prob, 20.0, &Judge::default(), &opts, &mut ws);
+    let theta = one.huber.theta();
+    let sandwich = one.huber.assessment.evidence.b_std.clone();
+    let settings = bootstrap::Settings { replicates: 400, block: 1, ..Default::default() };
+    let boot = bootstrap::run(&prob, &one, &settings, &opts);
+    assert_eq!(boot.failed, 0);
+    for i in 0..3 {
+        let iv = boot.parameters[i];
+        // The std of a std from 400 draws is ~3.5 %.
+        assert!((iv.std / sandwich[i] - 1.0).abs() < 0.12, "b{}: bootstrap {} sandwich {}", i + 1, iv.std, sandwich[i]);
+        // A Gaussian's 95 % interval is +/- 1.96 std around the estimate.
+        let half = (iv.upper - iv.lower) / 2.0;
+        assert!((half / (1.96 * sandwich[i]) - 1.0).abs() < 0.2, "b{}: {iv:?}", i + 1);
+        assert!((0.5 * (iv.upper + iv.lower) - theta[i]).abs() < 0.3 * sandwich[i], "b{}: {iv:?}", i + 1);
+    }
+    // The frequency response's intervals hold the fit's own |G|.
+    for (j, &w) in boot.frequencies.iter().enumerate() {
+        let (re, im) = oe::freq_response(&theta, &[], 1, w);
+        let m = boot.magnitude[j];
+        assert!(m.lower < re.hypot(im) && re.hypot(im) < m.upper, "w = {w}: {m:?}");
+    }
+}
+
+/// Over independent records of a small OE model, the bootstrap's 95 % intervals cover the
+/// truth at close to the nominal rate (Monte Carlo: 40 records x 4 parameters).
+#[test]
+fn the_bootstrap_covers_the_truth_at_the_nominal_rate() {
+    let (b, f) = oe22();
+    let opts = SolverOptions::default();
+    let mut ws = Workspace::new();
+    let (mut covered, mut total) = (0, 0);
+    for seed in 0..40 {
+        let (u, y) = record(&b, &f, 600, 0.3, 100 + seed);
+        let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: false, seams: &[] };
+        let one = estimate::fit_one(&prob, 1.5, &Judge::default(), &opts, &mut ws);
+        let settings = bootstrap::Settings { replicates: 100, seed, ..Default::default() };
+        let boot = bootstrap::run(&prob, &one, &settings, &opts);
+        for (iv, truth) in boot.parameters.iter().zip(b.iter().chain(&f)) {
+            covered += usize::from((iv.lower..=iv.upper).contains(truth));
+            total += 1;
+        }
+    }
+    // 160 intervals at 95 %: 152 expected, binomial std 2.8.
+    assert!((142..=160).contains(&covered), "covered {covered} of {total}");
+}
+
+#[test]
+fn the_bootstrap_does_not_depend_on_the_thread_count() {
+    let (b, f) = oe22();
+    let (u, y) = record(&b, &f, 800, 0.2, 8);
+    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: false, seams: &[] };
+    let opts = SolverOptions::default();
+    let one = estimate::fit_one(&prob, 1.0, &Judge::default(), &opts, &mut Workspace::new());
+    let settings = bootstrap::Settings { replicates: 40, ..Default::default() };
+    let with = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| bootstrap::run(&prob, &one, &settings, &opts))
+    };
+    let (one_thread, three) = (with(1), with(3));
+    assert_eq!(one_thread.parameters, three.parameters);
+    assert_eq!(one_thread.magnitude, three.magnitude);
+    assert_eq!(one_thread.phase_deg, three.phase_deg);
+}
+
+/// The lightly damped OE(12,12) of `examples/uncertainty_mc.rs` (three resonances at pole
+/// radius 0.97-0.99, DC gain 1).
+fn oe1212() -> (Vec<f64>, Vec<f64>) {
+    let f = f_from_poles(&[(0.99, 0.3), (0.98, 0.9), (0.97, 1.6), (0.5, 1.0), (0.5, 2.0), (0.5, 3.0)], &[]);
+    let bz = f_from_poles(&[(0.9, 0.6), (0.9, 1.25), (0.9, 2.2)], &[-1.5, 1.5, -2.0, 2.0, -3.0]);
+    let (fs, bs) = (1.0 + f.iter().sum::<f64>(), 1.0 + bz.iter().sum::<f64>());
+    (std::iter::once(1.0).chain(bz).map(|v| v * fs / bs).collect(), f)
+}
+
+/// Realisation 14 of `uncertainty_mc 30 5000 0.0875 1 0.05` (issue 37): the Huber fit from the
+/// least-squares phase's starts stops on the stability boundary (pole radius 0.99996), while
+/// the initial guess reaches an interior minimum with a lower W. `fit_one` returns that one.
+#[test]
+fn a_boundary_fit_is_not_returned_when_a_lower_interior_fit_is_within_reach() {
+    use oesweep::simulate::{self, NoiseKind, Outliers, SimOptions, SystemSpec};
+    let (b, f) = oe1212();
+    let opts = SimOptions {
+        n: 5000,
+        bits: 10,
+        amplitude: 1.0,
+        seed: 1014,
+        noise_std: 1.0,
+        noise: NoiseKind::Gaussian,
+        outliers: Some(Outliers { probability: 0.05, min: 5.0, max: 15.0 }),
+    };
+    let rec = simulate::generate(&SystemSpec { b, f, delay: 1 }, &opts).unwrap();
+    let prob = Problem { u: &rec.u, y: &rec.y, nb: 12, nf: 12, delay: 1, offset: false, seams: &[] };
+    let (judge, solver, k) = (Judge::default(), SolverOptions::default(), 0.0875);
+    let mut ws = Workspace::new();
+    let ls = estimate::fit_ls(&prob, &judge, &solver, &mut ws);
+    let (plain, _) = estimate::fit_huber_multi(&prob, &ls, k, &judge, &solver, &mut ws);
+    assert!(estimate::single::on_boundary(&plain), "radius {}", plain.assessment.max_pole_radius);
+    let one = estimate::fit_one(&prob, k, &judge, &solver, &mut ws);
+    assert!(!estimate::single::on_boundary(&one.huber), "radius {}", one.huber.assessment.max_pole_radius);
+    assert!(one.huber.criterion < plain.criterion, "{} against {}", one.huber.criterion, plain.criterion);
+    assert_eq!(one.start, "guess");
+}
