@@ -31,13 +31,7 @@ impl Lcg {
 }
 
 fn poly(pairs: &[(f64, f64)], real: &[f64]) -> Vec<f64> {
-    let mut roots = Vec::new();
-    for &(r, a) in pairs {
-        roots.push((r * a.cos(), r * a.sin()));
-        roots.push((r * a.cos(), -r * a.sin()));
-    }
-    roots.extend(real.iter().map(|&p| (p, 0.0)));
-    oe::poly_from_roots(&roots)
+    oesweep::oe::poly_from_poles(pairs, real)
 }
 
 /// The true OE(12,12) systems: three lightly damped modes (as the piezo system of

@@ -31,13 +31,7 @@ enum Plant {
 
 /// F with the given (radius, angle) pairs (each a conjugate pair) and real poles.
 fn f_from_poles(pairs: &[(f64, f64)], real: &[f64]) -> Vec<f64> {
-    let mut roots = Vec::new();
-    for &(r, a) in pairs {
-        roots.push((r * a.cos(), r * a.sin()));
-        roots.push((r * a.cos(), -r * a.sin()));
-    }
-    roots.extend(real.iter().map(|&p| (p, 0.0)));
-    oe::poly_from_roots(&roots)
+    oesweep::oe::poly_from_poles(pairs, real)
 }
 
 /// `q^-1 B/F` with F from the poles and a one-coefficient B giving a static gain of 1 (of 1

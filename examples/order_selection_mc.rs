@@ -45,13 +45,7 @@ struct System {
 }
 
 fn f_from_poles(pairs: &[(f64, f64)], real: &[f64]) -> Vec<f64> {
-    let mut roots = Vec::new();
-    for &(r, a) in pairs {
-        roots.push((r * a.cos(), r * a.sin()));
-        roots.push((r * a.cos(), -r * a.sin()));
-    }
-    roots.extend(real.iter().map(|&p| (p, 0.0)));
-    oesweep::oe::poly_from_roots(&roots)
+    oesweep::oe::poly_from_poles(pairs, real)
 }
 
 fn systems(which: &str) -> Vec<System> {

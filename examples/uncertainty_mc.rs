@@ -25,13 +25,7 @@ use std::time::Instant;
 
 /// Pole (radius, angle) pairs and real roots as the monic polynomial's coefficients after 1.
 fn poly(pairs: &[(f64, f64)], real: &[f64]) -> Vec<f64> {
-    let mut roots = Vec::new();
-    for &(r, a) in pairs {
-        roots.push((r * a.cos(), r * a.sin()));
-        roots.push((r * a.cos(), -r * a.sin()));
-    }
-    roots.extend(real.iter().map(|&p| (p, 0.0)));
-    oe::poly_from_roots(&roots)
+    oesweep::oe::poly_from_poles(pairs, real)
 }
 
 /// The true system: `c` (default) or, with `SYSTEM=piezo12`, the piezo system of

@@ -284,6 +284,18 @@ pub fn poly_from_roots(roots: &[(f64, f64)]) -> Vec<f64> {
     c[1..].iter().map(|z| z.0).collect()
 }
 
+/// Monic real polynomial `[f_1..f_n]` with the poles `r e^(+-j a)` of each (radius, angle) pair
+/// in `pairs` and the real poles `real`: how the tests and benchmarks write a system down.
+pub fn poly_from_poles(pairs: &[(f64, f64)], real: &[f64]) -> Vec<f64> {
+    let mut roots = Vec::new();
+    for &(r, a) in pairs {
+        roots.push((r * a.cos(), r * a.sin()));
+        roots.push((r * a.cos(), -r * a.sin()));
+    }
+    roots.extend(real.iter().map(|&p| (p, 0.0)));
+    poly_from_roots(&roots)
+}
+
 /// The complex coefficients of `prod (z - r)`, highest power first, into `c` (one longer than
 /// `roots`), multiplying in one root at a time in place. Allocates nothing.
 fn poly_from_roots_into(roots: &[(f64, f64)], c: &mut [(f64, f64)]) {

@@ -34,15 +34,7 @@ pub fn binary_input(n: usize, hold: usize, amp: f64, seed: u64) -> Vec<f64> {
 
 /// F with the given poles, as (radius, angle) pairs (each a conjugate pair) plus real poles.
 pub fn f_from_poles(pairs: &[(f64, f64)], real: &[f64]) -> Vec<f64> {
-    let mut roots = Vec::new();
-    for &(r, a) in pairs {
-        roots.push((r * a.cos(), r * a.sin()));
-        roots.push((r * a.cos(), -r * a.sin()));
-    }
-    for &p in real {
-        roots.push((p, 0.0));
-    }
-    oe::poly_from_roots(&roots)
+    oe::poly_from_poles(pairs, real)
 }
 
 /// A known OE(2,2) system.
