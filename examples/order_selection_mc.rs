@@ -146,6 +146,9 @@ fn realisation(
     })
 }
 
+/// Rule (None: the lead) -> per spike share: (picks with the true orders, over-fitted picks).
+type Hits = BTreeMap<Option<Rule>, Vec<(usize, usize)>>;
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let num = |i: usize, d: f64| args.get(i).map_or(d, |a| a.parse().expect("a number"));
@@ -161,7 +164,7 @@ fn main() {
     let keep = std::env::var("MC_KEEP").ok();
     for sys in systems(which) {
         // [one record, validation] -> rule -> per spike share: (true orders, over-fitted); widen counts
-        let mut hits: [BTreeMap<Option<Rule>, Vec<(usize, usize)>>; 2] = Default::default();
+        let mut hits: [Hits; 2] = Default::default();
         let mut widen = [[0usize; SPIKE_SHARES.len()]; 2];
         for (s, &share) in SPIKE_SHARES.iter().enumerate() {
             for r in 0..realisations {
