@@ -137,7 +137,8 @@ fn main() {
         }
         if replicates > 0 {
             let t0 = Instant::now();
-            let b = bootstrap::run(&prob, &one, &bootstrap::Settings { replicates, ..Default::default() }, &opts);
+            let settings = bootstrap::Settings { replicates, ..Default::default() };
+            let b = bootstrap::run(&prob, &one.huber.theta(), Some(one.huber.k), &settings, &opts);
             boot_seconds += t0.elapsed().as_secs_f64();
             boot_runs += 1;
             for i in 0..dim {

@@ -87,7 +87,7 @@ fn the_bootstrap_of_a_linear_model_finds_its_known_covariance() {
     let theta = one.huber.theta();
     let sandwich = one.huber.assessment.evidence.b_std.clone();
     let settings = bootstrap::Settings { replicates: 400, block: 1, ..Default::default() };
-    let boot = bootstrap::run(&prob, &one, &settings, &opts);
+    let boot = bootstrap::run(&prob, &one.huber.theta(), Some(one.huber.k), &settings, &opts);
     assert_eq!(boot.failed, 0);
     for i in 0..3 {
         let iv = boot.parameters[i];
@@ -119,7 +119,7 @@ fn the_bootstrap_covers_the_truth_at_the_nominal_rate() {
         let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: false, seams: &[] };
         let one = estimate::fit_one(&prob, 1.5, &Judge::default(), &opts, &mut ws);
         let settings = bootstrap::Settings { replicates: 100, seed, ..Default::default() };
-        let boot = bootstrap::run(&prob, &one, &settings, &opts);
+        let boot = bootstrap::run(&prob, &one.huber.theta(), Some(one.huber.k), &settings, &opts);
         for (iv, truth) in boot.parameters.iter().zip(b.iter().chain(&f)) {
             covered += usize::from((iv.lower..=iv.upper).contains(truth));
             total += 1;
@@ -139,7 +139,7 @@ fn the_bootstrap_does_not_depend_on_the_thread_count() {
     let settings = bootstrap::Settings { replicates: 40, ..Default::default() };
     let with = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| bootstrap::run(&prob, &one, &settings, &opts))
+        pool.install(|| bootstrap::run(&prob, &one.huber.theta(), Some(one.huber.k), &settings, &opts))
     };
     let (one_thread, three) = (with(1), with(3));
     assert_eq!(one_thread.parameters, three.parameters);
@@ -183,4 +183,75 @@ fn a_boundary_fit_is_not_returned_when_a_lower_interior_fit_is_within_reach() {
     assert!(!estimate::single::on_boundary(&one.huber), "radius {}", one.huber.assessment.max_pole_radius);
     assert!(one.huber.criterion < plain.criterion, "{} against {}", one.huber.criterion, plain.criterion);
     assert_eq!(one.start, "guess");
+}
+
+/// `"uncertainty": "bootstrap"` in a job: after the sweep, the bootstrap of each watched pick
+/// (here from one record: the lead `rbic` and the paper's picks) in selection.json, the
+/// summary and the report; the same intervals whatever the thread count.
+#[test]
+fn a_job_asking_for_the_bootstrap_gets_intervals_of_its_picks_whatever_the_thread_count() {
+    let (b, f) = oe22();
+    let (u, y) = record(&b, &f, 1000, 0.2, 9);
+    let dir = tempfile::tempdir().unwrap();
+    let mut csv = String::from("u,y\n");
+    for (a, v) in u.iter().zip(&y) {
+        csv.push_str(&format!("{a},{v}\n"));
+    }
+    std::fs::write(dir.path().join("data.csv"), csv).unwrap();
+    let run = |threads: &str| {
+        let out = format!("out{threads}");
+        let job = serde_json::json!({
+            "name": "bootstrap",
+            "data": { "path": "data.csv", "ts": 0.01 },
+            "grid": { "nb": [1, 3], "nf": [1, 3], "k": [0.5, 1.5] },
+            "uncertainty": { "method": "bootstrap", "replicates": 40, "seed": 3 },
+            "output": out
+        });
+        let file = dir.path().join(format!("job{threads}.json"));
+        std::fs::write(&file, job.to_string()).unwrap();
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
+            .args(["run", file.to_str().unwrap(), "--quiet", "--report", "--threads", threads])
+            .output()
+            .expect("oesweep runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+        let folder = dir.path().join(&out);
+        let sel: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(folder.join("selection.json")).unwrap()).unwrap();
+        (sel, stdout, std::fs::read_to_string(folder.join("report.html")).unwrap())
+    };
+    let (sel, stdout, page) = run("1");
+    let boot = sel["bootstrap"].as_array().expect("selection.json holds the bootstrap");
+    let rules: Vec<&str> =
+        boot.iter().flat_map(|p| p["rules"].as_array().unwrap().iter().map(|r| r.as_str().unwrap())).collect();
+    assert!(rules.contains(&"rbic") && rules.contains(&"paper_m2"), "{rules:?}");
+    for p in boot {
+        let iv = &p["intervals"];
+        assert_eq!(iv["replicates"], 40);
+        assert_eq!(iv["seed"], 3);
+        let values = p["values"].as_array().unwrap();
+        let params = iv["parameters"].as_array().unwrap();
+        assert_eq!(params.len(), values.len());
+        assert_eq!(p["parameters"].as_array().unwrap().len(), values.len());
+        for (v, i) in values.iter().zip(params) {
+            let (v, lo, hi) = (v.as_f64().unwrap(), i["lower"].as_f64().unwrap(), i["upper"].as_f64().unwrap());
+            assert!(lo < hi && lo <= v && v <= hi, "{}: {v} not in [{lo}, {hi}]", p["parameters"]);
+        }
+        assert_eq!(iv["magnitude"].as_array().unwrap().len(), iv["frequencies"].as_array().unwrap().len());
+    }
+    // The lead (the true orders here) is well identified: the bootstrap's std is the sandwich's.
+    let lead = boot.iter().find(|p| p["rules"].as_array().unwrap().iter().any(|r| r == "rbic")).unwrap();
+    assert_eq!((lead["nb"].as_u64(), lead["nf"].as_u64()), (Some(2), Some(2)), "{lead}");
+    for (s, i) in
+        lead["sandwich_std"].as_array().unwrap().iter().zip(lead["intervals"]["parameters"].as_array().unwrap())
+    {
+        let ratio = i["std"].as_f64().unwrap() / s.as_f64().unwrap();
+        assert!((0.5..2.0).contains(&ratio), "bootstrap std / sandwich std = {ratio}");
+    }
+    assert!(stdout.contains("bootstrap: 40 replicates"), "{stdout}");
+    assert!(page.contains("Bootstrap of the picks"), "the report shows the intervals");
+    let warnings = sel["warnings"].to_string();
+    assert!(!warnings.contains("--bootstrap 200"), "the bootstrap ran: {warnings}");
+    let (two, _, _) = run("2");
+    assert_eq!(two["bootstrap"], sel["bootstrap"]);
 }

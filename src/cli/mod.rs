@@ -13,7 +13,9 @@ use crate::error::{Error, Result};
 use crate::estimate::SolverOptions;
 use crate::shard;
 use crate::simulate;
-use print::{describe_grid, print_fit_summary, print_layout, print_picks, print_report, print_rules};
+use print::{
+    describe_grid, print_fit_summary, print_layout, print_pick_bootstraps, print_picks, print_report, print_rules,
+};
 
 /// The whole command line: parse the arguments, run the command, print an error as one line
 /// and map it to the exit code (0 success, 1 failure of the work itself, 2 bad input).
@@ -300,6 +302,7 @@ fn run_job(a: &RunArgs) -> Result<u8> {
             println!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
             print_picks(selection);
             print_rules(selection);
+            print_pick_bootstraps(selection);
             for w in selection.warnings.iter().filter(|w| !printed.borrow().contains(w)) {
                 eprintln!("warning: {w}");
             }
@@ -374,6 +377,7 @@ fn run_merge(a: &MergeArgs) -> Result<u8> {
             );
             print_picks(selection);
             print_rules(selection);
+            print_pick_bootstraps(selection);
             for w in &selection.warnings {
                 eprintln!("warning: {w}");
             }

@@ -65,8 +65,34 @@ pub(super) fn print_fit_summary(r: &FitReport) {
 
 /// The bootstrap's intervals beside the sandwich std (METHOD.md 17.3).
 fn print_bootstrap(r: &FitReport, b: &crate::estimate::bootstrap::Bootstrap) {
-    let pct = 100.0 * b.level;
+    let he = &r.huber.assessment.evidence;
+    let stds: Vec<f64> = he.b_std.iter().chain(&he.f_std).copied().chain(he.offset_std).collect();
     println!();
+    print_intervals(&r.parameters, &r.huber.theta(), &stds, b, r.ts);
+}
+
+/// A pick's bootstrap (the job's `uncertainty`), one block per model.
+pub(super) fn print_pick_bootstraps(selection: &reduce::Selection) {
+    for p in &selection.bootstrap {
+        let rules = p.rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
+        let k = p.k.map_or("least squares".to_string(), |k| format!("k = {}", crate::report::plot::trimmed(k, 4)));
+        println!();
+        println!("OE({},{}) delay {} {k} (picked by {rules})", p.nb, p.nf, p.delay);
+        let stds: Vec<f64> = p.sandwich_std.iter().map(|s| s.unwrap_or(f64::NAN)).collect();
+        print_intervals(&p.parameters, &p.values, &stds, &p.intervals, Some(p.ts));
+    }
+}
+
+/// The bootstrap's parameter intervals beside the values and sandwich std, and its intervals
+/// of the frequency response (in Hz when the sampling period is known).
+fn print_intervals(
+    names: &[String],
+    values: &[f64],
+    stds: &[f64],
+    b: &crate::estimate::bootstrap::Bootstrap,
+    ts: Option<f64>,
+) {
+    let pct = 100.0 * b.level;
     println!(
         "bootstrap: {} replicates ({} failed, {} on the stability boundary), residual blocks of {}, seed {}",
         b.replicates, b.failed, b.boundary, b.block, b.seed
@@ -79,16 +105,12 @@ fn print_bootstrap(r: &FitReport, b: &crate::estimate::bootstrap::Bootstrap) {
         "boot std",
         format!("{pct} % percentile interval")
     );
-    let he = &r.huber.assessment.evidence;
-    let values = r.huber.theta();
-    let stds: Vec<f64> = he.b_std.iter().chain(&he.f_std).copied().chain(he.offset_std).collect();
-    for (i, (name, iv)) in r.parameters.iter().zip(&b.parameters).enumerate() {
+    for (i, (name, iv)) in names.iter().zip(&b.parameters).enumerate() {
         let (v, s) = (values.get(i).copied().unwrap_or(f64::NAN), stds.get(i).copied().unwrap_or(f64::NAN));
         println!("{name:<10}{v:>15.6e}{s:>12.2e}{:>12.2e}    [{:.6e}, {:.6e}]", iv.std, iv.lower, iv.upper);
     }
-    let hz = |w: f64| {
-        r.ts.map_or(format!("{:.4} rad/sample", w), |ts| format!("{:.4} Hz", w / (std::f64::consts::TAU * ts)))
-    };
+    let hz =
+        |w: f64| ts.map_or(format!("{:.4} rad/sample", w), |ts| format!("{:.4} Hz", w / (std::f64::consts::TAU * ts)));
     println!("{:<22}{:>36}{:>36}", "frequency", "|G| interval", "phase interval (deg)");
     for ((w, m), p) in b.frequencies.iter().zip(&b.magnitude).zip(&b.phase_deg) {
         println!(

@@ -361,7 +361,7 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
     // A whole run: the results, then the checkpoint has served (if deleting it fails, a rerun
     // finds every cell done and merges again), then the report.
     let writing = Span::start(profile.as_deref(), Phase::Write);
-    let selection = write_results(&out, &p.job, &outcome.rows, Some(&p.inputs))?;
+    let selection = write_results(&out, &p.job, &outcome.rows, Some(&p.inputs), opts.threads)?;
     drop(writing);
     result.profile = profile.as_ref().map(|p| p.report());
     crate::failpoint::before_checkpoint_removal();
@@ -374,8 +374,15 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
 /// The result files of a complete (or `--partial`) table: `cells.parquet`, `selection.json`,
 /// `job.json`, replacing any report of an earlier table. Returns the picks. `inputs` are the
 /// job's records as the run read them (None: a merge that could not read the data files): they
-/// give the levels and warnings selection.json keeps and the picks' covariance the report draws.
-fn write_results(out: &Path, job: &ValidJob, rows: &[CellRow], inputs: Option<&Inputs>) -> Result<Selection> {
+/// give the levels and warnings selection.json keeps, the picks' covariance the report draws and
+/// the bootstrap the job's `uncertainty` may ask for (on `threads` workers, 0: all cores).
+fn write_results(
+    out: &Path,
+    job: &ValidJob,
+    rows: &[CellRow],
+    inputs: Option<&Inputs>,
+    threads: usize,
+) -> Result<Selection> {
     let settings = &job.job.selection;
     let sel_opts = ReduceOptions {
         basis: reduce::choose_basis(job.job.validation.is_some(), job.job.band_hz.is_some()),
@@ -396,7 +403,26 @@ fn write_results(out: &Path, job: &ValidJob, rows: &[CellRow], inputs: Option<&I
         _ => Vec::new(),
     };
     selection.warnings.extend(reduce::doubts::pick_warnings(&selection, rows, &grid, &beyond));
-    selection.warnings.extend(inputs.map(|i| uncertainty::pick_doubts(&selection, i)).unwrap_or_default());
+    let uncertainty = &job.job.uncertainty;
+    if let Some(inputs) = inputs.filter(|_| !uncertainty.is_local()) {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| Error::Invalid(format!("cannot start {threads} threads for the bootstrap: {e}")))?;
+        selection.bootstrap =
+            pool.install(|| uncertainty::bootstrap_picks(&selection, inputs, uncertainty, &job.job.solver, job.ts()));
+    }
+    if inputs.is_none() && !uncertainty.is_local() {
+        selection.warnings.push(
+            "the job asks for the bootstrap of the picks, but their data files could not be read again: no \
+             bootstrap intervals"
+                .into(),
+        );
+    }
+    let bootstrapped = !selection.bootstrap.is_empty();
+    selection
+        .warnings
+        .extend(inputs.map(|i| uncertainty::pick_doubts(&selection, i, bootstrapped)).unwrap_or_default());
     if let Some(inputs) = inputs {
         for pick in [selection.m1.as_mut(), selection.m2.as_mut()].into_iter().flatten() {
             pick.covariance = covariance_of(&pick.model, inputs);
@@ -514,7 +540,7 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
         }
         // The records read again (the folder does not keep them) through the run's loader.
         let inputs = job::load_inputs(&g.job).ok();
-        let selection = write_results(out, &g.job, &g.rows, inputs.as_ref())?;
+        let selection = write_results(out, &g.job, &g.rows, inputs.as_ref(), 0)?;
         result.huber = crate::table::huber_rows(&g.rows);
         result.ls = g.rows.len() - result.huber;
         if result.missing.is_empty() {

@@ -240,10 +240,9 @@ fn fit_records(
     ));
     let covariance = cov.map(|c| c.chunks(dim).map(<[f64]>::to_vec).collect());
     let bootstrap = req.bootstrap.map(|replicates| {
-        let one = estimate::OneFit { ls: ls.clone(), huber: huber.clone(), start, fits: 0 };
         let settings = estimate::bootstrap::Settings { replicates, ..Default::default() };
         // The offset, when a parameter, is estimated in the data's units: nothing to convert.
-        estimate::bootstrap::run(&prob, &one, &settings, &req.solver)
+        estimate::bootstrap::run(&prob, &theta, Some(huber.k), &settings, &req.solver)
     });
     let parameters = crate::export::model::parameter_names(req.nb, req.nf, req.offset.estimated());
     // Reported in the data's units, as in the table.

@@ -1,24 +1,29 @@
-//! The doubt about the picks' standard deviations (METHOD.md 17.2): for the lead rule's and
-//! the paper's picks (those `reduce::doubts` watches, which also says it of a pick on the
-//! stability boundary), a warning when the pick's criterion is far from quadratic over its confidence region
-//! ([`estimate::quadratic`]), where the sandwich covariance does not describe the uncertainty.
+//! The uncertainty of the watched picks (the lead rule's and the paper's, those
+//! `reduce::doubts` watches): the doubt about their standard deviations (METHOD.md 17.2), a
+//! warning when a pick's criterion is far from quadratic over its confidence region
+//! ([`estimate::quadratic`]), where the sandwich covariance does not describe the uncertainty
+//! (`reduce::doubts` says it of a pick on the stability boundary); and, when the job asks
+//! (`"uncertainty": "bootstrap"`), the bootstrap of their whole estimation (METHOD.md 17.3).
 
 use super::covariance_of;
 use crate::estimate::least_squares::BOUNDARY;
 use crate::estimate::{self, Problem};
-use crate::job::Inputs;
-use crate::reduce::{Rule, Selection};
+use crate::job::{Inputs, Uncertainty};
+use crate::reduce::{PickBootstrap, Rule, Selection};
 use crate::table::CellRow;
 use std::collections::BTreeMap;
 
 /// What the warnings advise instead of the local standard deviations.
-pub const REMEDY: &str = "a bootstrap that includes the search: `oesweep fit` of this model with `--bootstrap 200`";
+pub const REMEDY: &str = "a bootstrap that includes the search: `\"uncertainty\": \"bootstrap\"` in the job, or `oesweep fit` of this model with `--bootstrap 200`";
+
+/// The same advice when the job's bootstrap ran.
+const REMEDY_DONE: &str = "the bootstrap's intervals of this model (selection.json `bootstrap`)";
 
 /// A picked cell: (delay, nB, nF, k index).
 type Cell = (u32, u32, u32, Option<u32>);
 
-/// The warnings, one per model (a cell: orders, delay and k) picked by a watched rule.
-pub fn pick_doubts(sel: &Selection, inputs: &Inputs) -> Vec<String> {
+/// The models picked by a watched rule, each with the rules that picked it, in a fixed order.
+fn watched_models(sel: &Selection) -> Vec<(Vec<Rule>, &CellRow)> {
     let mut models: BTreeMap<Cell, (Vec<Rule>, &CellRow)> = BTreeMap::new();
     let watched = |r: &Rule| *r == sel.rule || matches!(r, Rule::PaperM1 | Rule::PaperM2);
     for (rule, pick) in sel.picks.iter().filter(|(r, _)| watched(r)) {
@@ -27,8 +32,14 @@ pub fn pick_doubts(sel: &Selection, inputs: &Inputs) -> Vec<String> {
             models.entry(key).or_insert((Vec::new(), &m.row)).0.push(*rule);
         }
     }
-    models
-        .into_values()
+    models.into_values().collect()
+}
+
+/// The warnings, one per watched model; `bootstrapped`: the job's bootstrap ran (the remedy
+/// then points to its intervals).
+pub fn pick_doubts(sel: &Selection, inputs: &Inputs, bootstrapped: bool) -> Vec<String> {
+    watched_models(sel)
+        .into_iter()
         .filter_map(|(rules, row)| {
             let names = rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
             let k =
@@ -40,7 +51,44 @@ pub fn pick_doubts(sel: &Selection, inputs: &Inputs) -> Vec<String> {
                 return None;
             }
             let check = quadratic_check(row, inputs);
-            estimate::quadratic::doubt(&model, radius, check.as_ref(), REMEDY)
+            estimate::quadratic::doubt(&model, radius, check.as_ref(), if bootstrapped { REMEDY_DONE } else { REMEDY })
+        })
+        .collect()
+}
+
+/// The bootstrap of every watched model's whole estimation on the job's estimation record
+/// (METHOD.md 17.3), replicates in parallel on the current rayon pool.
+pub fn bootstrap_picks(
+    sel: &Selection,
+    inputs: &Inputs,
+    settings: &Uncertainty,
+    solver: &estimate::SolverOptions,
+    ts: f64,
+) -> Vec<PickBootstrap> {
+    let boot =
+        estimate::bootstrap::Settings { replicates: settings.replicates, seed: settings.seed, ..Default::default() };
+    watched_models(sel)
+        .into_iter()
+        .map(|(rules, row)| {
+            let prob = problem(row, inputs);
+            let c = inputs.levels.estimated_c(row.fit.offset);
+            let theta = estimate::theta_of(&row.fit.b, &row.fit.f, c);
+            let sandwich = covariance_of(row, inputs);
+            let dim = theta.len();
+            let sandwich_std =
+                (0..dim).map(|i| sandwich.as_ref().map(|cov| cov[i * dim + i].max(0.0).sqrt())).collect();
+            PickBootstrap {
+                rules,
+                nb: row.key.nb,
+                nf: row.key.nf,
+                delay: row.key.delay,
+                k: row.k,
+                parameters: crate::export::model::parameter_names(prob.nb, prob.nf, c.is_some()),
+                values: theta.clone(),
+                sandwich_std,
+                ts,
+                intervals: estimate::bootstrap::run(&prob, &theta, row.k, &boot, solver),
+            }
         })
         .collect()
 }

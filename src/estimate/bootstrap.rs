@@ -8,6 +8,7 @@
 //! e*_r   = circular blocks of length L from e,         r = 1..B, block starts uniform
 //! y*_r   = yhat(theta_hat) + e*_r
 //! theta*_r = fit_one(u, y*_r)                          least squares, Huber, every start
+//!            (fit_ls alone for a least-squares model)
 //! ```
 //!
 //! The intervals are the percentile intervals of theta*_r (and of |G| and the phase of G at a
@@ -20,9 +21,10 @@
 //! the thread count.
 
 use super::fit::Judge;
+use super::least_squares::{BOUNDARY, fit_ls};
 use super::options::SolverOptions;
 use super::problem::Problem;
-use super::single::{OneFit, fit_one, on_boundary};
+use super::single::{fit_one, on_boundary};
 use super::workspace::Workspace;
 use crate::oe;
 use crate::rng::Xoshiro256;
@@ -79,7 +81,7 @@ pub fn default_frequencies() -> Vec<f64> {
 }
 
 /// A percentile interval and the bootstrap standard deviation.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Interval {
     pub lower: f64,
     pub upper: f64,
@@ -87,7 +89,7 @@ pub struct Interval {
 }
 
 /// What [`run`] found.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Bootstrap {
     pub replicates: usize,
     /// Replicates whose estimation failed (no finite criterion); left out of the intervals.
@@ -106,29 +108,36 @@ pub struct Bootstrap {
     pub phase_deg: Vec<Interval>,
 }
 
-/// The bootstrap of `fit` (the estimation of `prob` at its k, [`fit_one`]).
-pub fn run(prob: &Problem, fit: &OneFit, settings: &Settings, opts: &SolverOptions) -> Bootstrap {
-    let theta = fit.huber.theta();
-    let yhat = prob.simulate_vec(&theta);
+/// The bootstrap of the model `theta` of `prob`'s structure: estimated at tuning constant `k`
+/// ([`fit_one`]), or by least squares alone when `k` is None ([`fit_ls`]).
+pub fn run(prob: &Problem, theta: &[f64], k: Option<f64>, settings: &Settings, opts: &SolverOptions) -> Bootstrap {
+    let yhat = prob.simulate_vec(theta);
     let resid: Vec<f64> = prob.y.iter().zip(&yhat).map(|(y, v)| y - v).collect();
     let n = prob.n();
     let block = if settings.block > 0 { settings.block } else { ((n as f64).cbrt().round() as usize).max(1) };
     let judge = Judge { criterion_only: true, ..Judge::default() };
-    let k = fit.huber.k;
     crate::faer_sequential();
     let replicates: Vec<Option<(Vec<f64>, bool)>> = (0..settings.replicates)
         .into_par_iter()
         .map_init(Workspace::new, |ws, r| {
             let y = resampled(&yhat, &resid, block, settings.seed, r as u64);
             let rep = Problem { y: &y, ..*prob };
-            let one = fit_one(&rep, k, &judge, opts, ws);
-            one.huber.criterion.is_finite().then(|| (one.huber.theta(), on_boundary(&one.huber)))
+            match k {
+                Some(k) => {
+                    let one = fit_one(&rep, k, &judge, opts, ws);
+                    one.huber.criterion.is_finite().then(|| (one.huber.theta(), on_boundary(&one.huber)))
+                }
+                None => {
+                    let ls = fit_ls(&rep, &judge, opts, ws);
+                    ls.ok().then(|| (ls.theta(), oe::max_pole_radius(&ls.f) >= BOUNDARY))
+                }
+            }
         })
         .collect();
     let ok: Vec<&(Vec<f64>, bool)> = replicates.iter().flatten().collect();
     let interval = |mut v: Vec<f64>| percentile_interval(&mut v, settings.level);
     let parameters = (0..theta.len()).map(|i| interval(ok.iter().map(|t| t.0[i]).collect())).collect();
-    let (b0, f0, _) = prob.split(&theta);
+    let (b0, f0, _) = prob.split(theta);
     let mut magnitude = Vec::new();
     let mut phase_deg = Vec::new();
     for &w in &settings.frequencies {

@@ -128,8 +128,9 @@ fn ranked(sols: &[Solution]) -> (&Solution, Vec<&Solution>) {
 /// (L2 96/96 on both records; Huber 760 and 763 of 768 against 761 and 762) for 2 fewer
 /// minimisations per pair. (Dropping the first detour too saved as much again but left 8 of the
 /// paper grid's 96 least-squares fits higher than before, by up to 0.22 %, against 21 lower.) A
-/// pair without sub-models (`oesweep fit`, a grid's smallest pair) keeps it: on noise-free
-/// OE(2,2) data the OE(6,6) fit needs these starts to reach the exact fit.
+/// pair without sub-models (`oesweep fit`, a grid's smallest pair) keeps it: with these starts
+/// the OE(6,6) fit of noise-free OE(2,2) data reaches the exact fit
+/// (`tests/estimation.rs::an_over_parameterised_fit_of_noise_free_data_is_exact`).
 fn ls_minima(prob: &Problem, opts: &SolverOptions, alone: bool, ws: &mut Workspace) -> Vec<Solution> {
     let guesses = initial_guess::initial_guesses(prob);
     // Each guess also with heavy initial damping (gradient-like first steps, as a trust-region

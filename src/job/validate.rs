@@ -257,6 +257,11 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
     if !(sel.fit_tolerance.is_finite() && sel.fit_tolerance >= 0.0) {
         return Err(bad("selection.fit_tolerance", format!("must be >= 0, got {}", sel.fit_tolerance)));
     }
+    let u = &job.uncertainty;
+    let (lo, hi) = (crate::estimate::bootstrap::MIN_REPLICATES, super::Uncertainty::MAX_REPLICATES);
+    if !u.is_local() && !(lo..=hi).contains(&u.replicates) {
+        return Err(bad("uncertainty.replicates", format!("must be from {lo} to {hi}, got {}", u.replicates)));
+    }
     job.output = resolve(&base, &job.output);
     check_output_folder(&job.output).map_err(|msg| bad("output", msg))?;
     job.grid.k = KGrid::List(ks);

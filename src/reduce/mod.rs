@@ -184,6 +184,30 @@ pub struct Selection {
     /// Every rule's pick ([`rules`]; empty in files of older versions).
     #[serde(default)]
     pub picks: BTreeMap<Rule, RulePick>,
+    /// The bootstrap of the watched picks, when the job's `uncertainty` asked for it (METHOD.md
+    /// 17.3): one entry per model.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub bootstrap: Vec<PickBootstrap>,
+}
+
+/// The bootstrap of one picked model (METHOD.md 17.3) beside its sandwich standard deviations.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct PickBootstrap {
+    /// The rules that picked it.
+    pub rules: Vec<Rule>,
+    pub nb: u32,
+    pub nf: u32,
+    pub delay: u32,
+    /// None: a least-squares model.
+    pub k: Option<f64>,
+    /// The parameters' names, values and sandwich standard deviations (None without a
+    /// covariance), in the order of the bootstrap's intervals.
+    pub parameters: Vec<String>,
+    pub values: Vec<f64>,
+    pub sandwich_std: Vec<Option<f64>>,
+    /// The sampling period (s): the intervals' frequencies are in rad/sample, f = w / (2 pi ts) Hz.
+    pub ts: f64,
+    pub intervals: crate::estimate::bootstrap::Bootstrap,
 }
 
 fn default_rule() -> Rule {
@@ -306,6 +330,7 @@ pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
         input_level: None,
         initial_state: None,
         warnings: Vec::new(),
+        bootstrap: Vec::new(),
     }
 }
 
