@@ -220,6 +220,8 @@ fn dump_dom(chromium: &Path, page: &Path) -> Option<String> {
             "--no-first-run",
             // Lets the load event and the check script run before the DOM is printed.
             "--virtual-time-budget=10000",
+            // The window the page must fit (issue 38: the picks table's flags were cut off).
+            "--window-size=1300,1000",
         ])
         .arg(format!("--user-data-dir={}", profile.path().display()))
         .arg("--dump-dom")
@@ -263,6 +265,11 @@ fn check_page(out: &Path) -> PathBuf {
           imgs[i].setAttribute('data-loaded', String(imgs[i].complete && imgs[i].naturalWidth > 0));\n\
         }\n\
         document.body.setAttribute('data-checked', String(imgs.length));\n\
+        var right = 0;\n\
+        document.querySelectorAll('table').forEach(function (t) {\n\
+          right = Math.max(right, Math.ceil(t.getBoundingClientRect().right));\n\
+        });\n\
+        document.body.setAttribute('data-width', right + ' ' + document.documentElement.clientWidth);\n\
       });</script>\n</body>";
     let page = out.join("report-check.html");
     std::fs::write(&page, html.replacen("</body>", script, 1)).unwrap();
@@ -299,6 +306,16 @@ fn browser_renders_report_with_every_image() {
     );
     assert_eq!(dom.matches("data-loaded=\"true\"").count(), figures.len(), "some image did not load");
     assert!(!dom.contains("data-loaded=\"false\""));
+    // Every table within the 1300-pixel window's viewport: no cut-off column (the picks table
+    // of commit b623e54 reached 1300 in a viewport of 1285).
+    let measured: Vec<usize> = dom
+        .split("data-width=\"")
+        .nth(1)
+        .and_then(|s| s.split('"').next())
+        .map(|w| w.split(' ').filter_map(|v| v.parse().ok()).collect())
+        .expect("the check script measured the page");
+    let [right, viewport] = measured[..] else { panic!("measured {measured:?}") };
+    assert!(right <= viewport, "a table reaches {right} px in a viewport of {viewport} px");
 
     // The check really fails on a missing or broken figure.
     std::fs::remove_file(out.join(&figures[0])).unwrap();
