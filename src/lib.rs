@@ -28,6 +28,7 @@ pub mod slurm;
 pub mod spectral;
 pub mod sweep;
 pub mod table;
+pub mod text;
 
 pub use error::{Error, Result};
 

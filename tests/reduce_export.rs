@@ -5,7 +5,7 @@ use oesweep::estimate::evidence::Evidence;
 use oesweep::export::json::write_json;
 use oesweep::export::parquet::{read_cells, write_cells};
 use oesweep::reduce::{FitBasis, ReduceOptions, Selection, select};
-use oesweep::table::{COLUMNS, CellRow, ColumnType, Fit, FitKind, RowKey, Status};
+use oesweep::table::{CellRow, Fit, FitKind, RowKey, Status};
 use polars::prelude::*;
 use std::fs::File;
 use std::path::Path;
@@ -139,20 +139,22 @@ fn parquet_file_has_the_documented_schema() {
     let path = dir.path().join("cells.parquet");
     write_cells(&path, &sample_rows()).unwrap();
     let df = ParquetReader::new(File::open(&path).unwrap()).finish().unwrap();
-    // The dtype each column type is stored as (the published Parquet layout).
-    let dtype = |t: ColumnType| match t {
-        ColumnType::Str => DataType::String,
-        ColumnType::U32 => DataType::UInt32,
-        ColumnType::F64 => DataType::Float64,
-        ColumnType::Bool => DataType::Boolean,
-        ColumnType::ListF64 => DataType::List(Box::new(DataType::Float64)),
-    };
-    let expected: Vec<(&str, DataType)> = COLUMNS.iter().map(|c| (c.name, dtype(c.ty))).collect();
-    // The published names in order start as they always did.
-    let first = ["method", "nb", "nf", "delay", "k_index", "k", "sigma", "gamma", "criterion", "l1c", "fit"];
-    assert_eq!(expected.iter().take(first.len()).map(|(n, _)| *n).collect::<Vec<_>>(), first);
+    // The published layout (README "Columns of cells.parquet"), written out here rather than
+    // derived from `COLUMNS`, so that a renamed, retyped, moved or dropped column fails.
+    let (s, u, f, b) = (DataType::String, DataType::UInt32, DataType::Float64, DataType::Boolean);
+    let l = DataType::List(Box::new(DataType::Float64));
+    #[rustfmt::skip]
+    let published = [
+        ("method", &s), ("nb", &u), ("nf", &u), ("delay", &u), ("k_index", &u), ("k", &f), ("sigma", &f),
+        ("gamma", &f), ("criterion", &f), ("l1c", &f), ("fit", &f), ("fit_val", &f), ("fit_band", &f),
+        ("iterations", &u), ("termination", &s), ("converged", &b), ("status", &s), ("reason", &s),
+        ("max_pole_radius", &f), ("reflections", &u), ("start", &s), ("seconds", &f), ("b", &l), ("f", &l),
+        ("offset", &f), ("b_std", &l), ("f_std", &l), ("offset_std", &f), ("max_rel_std", &f),
+        ("resid_white_p", &f), ("resid_indep_p", &f), ("cancellations", &u), ("aic", &f), ("aicc", &f),
+        ("bic", &f), ("fpe", &f), ("raic", &f), ("rbic", &f), ("fit_exp", &l), ("fit_val_exp", &l),
+    ];
+    let want: Vec<(String, DataType)> = published.iter().map(|(n, d)| (n.to_string(), (*d).clone())).collect();
     let got: Vec<(String, DataType)> = df.schema().iter().map(|(n, d)| (n.to_string(), d.clone())).collect();
-    let want: Vec<(String, DataType)> = expected.into_iter().map(|(n, d)| (n.to_string(), d)).collect();
     assert_eq!(got, want);
     assert_eq!(df.height(), 5);
     // Nulls are real Parquet nulls, not sentinels.

@@ -175,7 +175,7 @@ pub struct FitArgs {
     pub band: Option<(f64, f64)>,
     /// Spectral estimate of the band fit: robust (spikes cleaned out first) or plain Welch.
     #[arg(long, value_enum, default_value = "robust")]
-    pub spectrum: SpectrumArg,
+    pub spectrum: crate::spectral::SpectrumMethod,
     /// Input column: a name, or a 1-based position.
     #[arg(long, default_value = "u")]
     pub u: String,
@@ -189,11 +189,11 @@ pub struct FitArgs {
     /// Signal offsets: estimate a constant output offset (input mean removed), subtract the
     /// estimation record's mean or median, or none (the paper's model).
     #[arg(long, value_enum, default_value = "estimate")]
-    pub offset: OffsetArg,
+    pub offset: crate::data::Offset,
     /// Initial state of the judged fits: estimated by least squares on each record (as
     /// MATLAB's compare), or zero (the paper's).
     #[arg(long, value_enum, default_value = "estimate")]
-    pub initial_state: InitialStateArg,
+    pub initial_state: crate::estimate::InitialState,
     /// Iteration cap of each minimisation.
     #[arg(long, default_value_t = SolverOptions::default().max_iterations)]
     pub max_iterations: usize,
@@ -202,11 +202,11 @@ pub struct FitArgs {
     pub ftol: f64,
     /// Huber Hessian: exact Gauss-Newton (L1 rows weight 0) or IRLS (weight gamma/|e|).
     #[arg(long, value_enum, default_value = "gauss-newton")]
-    pub huber_hessian: HessianArg,
+    pub huber_hessian: HuberHessian,
     /// Solver: Levenberg-Marquardt over all parameters, or variable projection (F searched,
     /// b and the offset solved for).
     #[arg(long, value_enum, default_value = "lm")]
-    pub method: MethodArg,
+    pub method: SolverMethod,
     /// Bootstrap the whole estimation B times (parametric, residual blocks; refits in
     /// parallel) for percentile intervals of the parameters and of |G| and its phase
     /// (METHOD.md 17.3). `--bootstrap` alone: B = 200.
@@ -236,7 +236,7 @@ pub struct SpectrumArgs {
     pub rows: Option<[usize; 2]>,
     /// robust: the output's spikes cleaned out before Welch's estimate; welch: as it is.
     #[arg(long, value_enum, default_value = "robust")]
-    pub method: SpectrumArg,
+    pub method: crate::spectral::SpectrumMethod,
     /// Print one JSON object (freq_hz, re, im, coherence, mag_lower, mag_upper) instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -276,38 +276,6 @@ pub struct SimulateArgs {
     pub outlier_range: (f64, f64),
 }
 
-/// `--huber-hessian` ([`HuberHessian`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum HessianArg {
-    GaussNewton,
-    Irls,
-}
-
-impl From<HessianArg> for HuberHessian {
-    fn from(a: HessianArg) -> Self {
-        match a {
-            HessianArg::GaussNewton => HuberHessian::GaussNewton,
-            HessianArg::Irls => HuberHessian::Irls,
-        }
-    }
-}
-
-/// `--method` ([`SolverMethod`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum MethodArg {
-    Lm,
-    Separable,
-}
-
-impl From<MethodArg> for SolverMethod {
-    fn from(a: MethodArg) -> Self {
-        match a {
-            MethodArg::Lm => SolverMethod::Lm,
-            MethodArg::Separable => SolverMethod::Separable,
-        }
-    }
-}
-
 fn parse_band(s: &str) -> std::result::Result<(f64, f64), String> {
     let parts: Vec<&str> = s.split(',').collect();
     if parts.len() != 2 {
@@ -322,53 +290,4 @@ fn parse_rows(s: &str) -> std::result::Result<[usize; 2], String> {
     let (a, b) = s.split_once(':').ok_or_else(|| format!("'{s}': expected FIRST:LAST, e.g. 1:700"))?;
     let n = |t: &str| t.trim().parse::<usize>().map_err(|_| format!("'{s}': '{t}' is not a row number"));
     Ok([n(a)?, n(b)?])
-}
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum OffsetArg {
-    Estimate,
-    Mean,
-    Median,
-    None,
-}
-
-impl From<OffsetArg> for crate::data::Offset {
-    fn from(a: OffsetArg) -> Self {
-        match a {
-            OffsetArg::Estimate => crate::data::Offset::Estimate,
-            OffsetArg::Mean => crate::data::Offset::Mean,
-            OffsetArg::Median => crate::data::Offset::Median,
-            OffsetArg::None => crate::data::Offset::None,
-        }
-    }
-}
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum InitialStateArg {
-    Estimate,
-    Zero,
-}
-
-impl From<InitialStateArg> for crate::estimate::InitialState {
-    fn from(a: InitialStateArg) -> Self {
-        match a {
-            InitialStateArg::Estimate => crate::estimate::InitialState::Estimate,
-            InitialStateArg::Zero => crate::estimate::InitialState::Zero,
-        }
-    }
-}
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum SpectrumArg {
-    Robust,
-    Welch,
-}
-
-impl From<SpectrumArg> for crate::spectral::SpectrumMethod {
-    fn from(a: SpectrumArg) -> Self {
-        match a {
-            SpectrumArg::Robust => crate::spectral::SpectrumMethod::Robust,
-            SpectrumArg::Welch => crate::spectral::SpectrumMethod::Welch,
-        }
-    }
 }

@@ -95,7 +95,7 @@ fn run_spectrum(a: &args::SpectrumArgs) -> Result<u8> {
         y: ColumnRef::parse(&a.y),
         rows: a.rows,
         ts: a.ts,
-        method: a.method.into(),
+        method: a.method,
     };
     let r = engine::spectrum(&req)?;
     if a.json {
@@ -115,9 +115,9 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
         validation: a.validation.clone(),
         val_y: a.val_y.as_deref().map(ColumnRef::parse),
         val_rows: a.val_rows,
-        offset: a.offset.into(),
-        initial_state: a.initial_state.into(),
-        spectrum: a.spectrum.into(),
+        offset: a.offset,
+        initial_state: a.initial_state,
+        spectrum: a.spectrum,
         nb: a.nb,
         nf: a.nf,
         k: a.k,
@@ -127,8 +127,8 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
         solver: SolverOptions {
             max_iterations: a.max_iterations,
             ftol: a.ftol,
-            huber_hessian: a.huber_hessian.into(),
-            method: a.method.into(),
+            huber_hessian: a.huber_hessian,
+            method: a.method,
             ..Default::default()
         },
         bootstrap: a.bootstrap,

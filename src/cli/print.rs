@@ -18,7 +18,7 @@ pub(super) fn print_fit_summary(r: &FitReport) {
         println!("validation: {} (column '{c}')", p.display());
     }
     println!();
-    println!("{:<22}{:>18}{:>18}", "", "least squares", format!("Huber k={}", h.k));
+    println!("{:<22}{:>18}{:>18}", "", "least squares", format!("Huber k={}", crate::text::k(h.k)));
     println!("{:<22}{:>18.6e}{:>18.6e}", "criterion", l.criterion, h.criterion);
     println!("{:<22}{:>18}{:>18.6e}", "gamma", "-", h.gamma);
     println!("{:<22}{:>18.6e}{:>18}", "sigma", l.sigma, "");
@@ -75,7 +75,7 @@ fn print_bootstrap(r: &FitReport, b: &crate::estimate::bootstrap::Bootstrap) {
 pub(super) fn print_pick_bootstraps(selection: &reduce::Selection) {
     for p in &selection.bootstrap {
         let rules = p.rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
-        let k = p.k.map_or("least squares".to_string(), |k| format!("k = {}", crate::report::plot::trimmed(k, 4)));
+        let k = p.k.map_or("least squares".to_string(), |k| format!("k = {}", crate::text::k(k)));
         println!();
         println!("OE({},{}) delay {} {k} (picked by {rules})", p.nb, p.nf, p.delay);
         let stds: Vec<f64> = p.sandwich_std.iter().map(|s| s.unwrap_or(f64::NAN)).collect();
@@ -167,7 +167,7 @@ pub(super) fn print_picks(selection: &reduce::Selection) {
                 "{label} OE({}, {}) k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  fit = {}",
                 m.model.key.nb,
                 m.model.key.nf,
-                crate::report::plot::trimmed(m.model.k(), 4),
+                crate::text::k(m.model.k()),
                 m.model.gamma(),
                 m.model.criterion(),
                 100.0 * m.model.l1c(),
@@ -184,7 +184,7 @@ pub(super) fn print_picks(selection: &reduce::Selection) {
             m.key.nb,
             m.key.nf,
             m.key.delay,
-            m.row.k.map_or(" (least squares)".to_string(), |k| format!(" k = {}", crate::report::plot::trimmed(k, 4))),
+            m.row.k.map_or(" (least squares)".to_string(), |k| format!(" k = {}", crate::text::k(k))),
             selection.basis.column(),
             opt_pct(Some(m.score).filter(|v| v.is_finite()))
         ),
@@ -205,7 +205,7 @@ pub(super) fn print_rules(selection: &reduce::Selection) {
             println!("{lead}{:<11}none: {}", rule.as_str(), pick.why);
             continue;
         };
-        let k = m.row.k.map_or("-".to_string(), |k| crate::report::plot::trimmed(k, 4));
+        let k = m.row.k.map_or("-".to_string(), crate::text::k);
         let value = pick.value.map_or("-".to_string(), |v| format!("{} {v:.6}", pick.measure));
         let score = Some(m.score).filter(|v| v.is_finite());
         println!(

@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 use super::Record;
 
 /// The job's `offset` setting.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Offset {
     #[default]

@@ -73,7 +73,7 @@ pub fn export_model(folder: &Path, spec: Option<&PickSpec>) -> Result<(ModelOut,
     };
     let estimated = res.selection.offset.is_some_and(|o| o.estimated());
     let parameters = crate::export::model::parameter_names(row.fit.b.len(), row.fit.f.len(), estimated);
-    let k = row.k.map_or(" (least squares)".to_string(), |k| format!(" at k = {k}"));
+    let k = row.k.map_or(" (least squares)".to_string(), |k| format!(" at k = {}", crate::text::k(k)));
     let model = ModelOut {
         name: format!("OE({},{}) delay {}{k}, {label}", row.key.nb, row.key.nf, row.key.delay),
         delay: row.key.delay,

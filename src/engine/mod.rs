@@ -383,12 +383,9 @@ fn write_results(
     inputs: Option<&Inputs>,
     threads: usize,
 ) -> Result<Selection> {
-    let settings = &job.job.selection;
     let sel_opts = ReduceOptions {
         basis: reduce::choose_basis(job.job.validation.is_some(), job.job.band_hz.is_some()),
-        min_tolerance: settings.min_tolerance,
-        fit_tolerance: settings.fit_tolerance,
-        rule: settings.rule,
+        settings: job.job.selection,
     };
     let mut selection = reduce::select(rows, &sel_opts);
     selection.offset = Some(job.job.offset);

@@ -42,8 +42,7 @@ pub fn pick_doubts(sel: &Selection, inputs: &Inputs, bootstrapped: bool) -> Vec<
         .into_iter()
         .filter_map(|(rules, row)| {
             let names = rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
-            let k =
-                row.k.map_or("least squares".to_string(), |k| format!("k = {}", crate::report::plot::trimmed(k, 4)));
+            let k = row.k.map_or("least squares".to_string(), |k| format!("k = {}", crate::text::k(k)));
             let model = format!("OE({},{}) delay {} {k} (picked by {names})", row.key.nb, row.key.nf, row.key.delay);
             let radius = row.fit.max_pole_radius.unwrap_or(0.0);
             // A boundary pick has its warning, with this doubt, from `reduce::doubts`.

@@ -20,7 +20,7 @@ use super::linalg::{cholesky, cholesky_solve};
 use crate::{kernels, oe};
 
 /// The initial state a fitted model is judged with (the job's `initial_state`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum InitialState {
     /// Fitted by least squares on the record being judged (the default).

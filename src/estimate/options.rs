@@ -2,7 +2,7 @@
 //! minimisation stopped ([`Termination`], a table column).
 
 /// How the Huber Hessian weights the L1 rows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum HuberHessian {
     /// Exact Gauss-Newton Hessian of W: L1 rows get weight 0 (METHOD.md 3).
@@ -12,7 +12,7 @@ pub enum HuberHessian {
 }
 
 /// How the parameters are searched.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum SolverMethod {
     /// Levenberg-Marquardt over all of theta = [b, f, c].

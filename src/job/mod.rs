@@ -13,6 +13,7 @@ use crate::estimate::SolverOptions;
 mod inputs;
 mod validate;
 
+pub use crate::reduce::SelectionSettings;
 pub use inputs::{Inputs, inputs_of_records, load_inputs, read_inputs, read_records};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -234,32 +235,6 @@ impl StartStrategy {
             StartStrategy::Ls => "ls",
             StartStrategy::Neighbour => "neighbour",
             StartStrategy::Best => "best",
-        }
-    }
-}
-
-/// Tolerances of the model choice (METHOD.md 7; rules in [`crate::reduce`]).
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct SelectionSettings {
-    /// A point of a W (or L1C) curve along nF is a local minimum when it is not above either
-    /// neighbour by more than this (relative for W, absolute share for L1C).
-    pub min_tolerance: f64,
-    /// Candidates within this many fit-percentage points of the best count as ties; the one
-    /// with the fewest parameters wins.
-    pub fit_tolerance: f64,
-    /// The pick rule the summary leads with (every rule is reported; METHOD.md 7.1); absent:
-    /// `paper_m2` with a validation record, `rbic` without ([`crate::reduce::rules::lead_rule`]).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub rule: Option<crate::reduce::Rule>,
-}
-
-impl Default for SelectionSettings {
-    fn default() -> Self {
-        SelectionSettings {
-            min_tolerance: crate::reduce::DEFAULT_MIN_TOLERANCE,
-            fit_tolerance: crate::reduce::DEFAULT_FIT_TOLERANCE,
-            rule: None,
         }
     }
 }

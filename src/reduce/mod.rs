@@ -44,11 +44,13 @@
 mod candidate;
 pub mod doubts;
 pub mod rules;
+mod settings;
 
 use crate::table::CellRow;
 pub use candidate::Candidate;
 pub use rules::{Rule, RulePick};
 use serde::{Deserialize, Serialize};
+pub use settings::{ReduceOptions, SelectionSettings};
 use std::cmp::Ordering;
 use std::collections::BTreeMap;
 
@@ -95,25 +97,6 @@ impl FitBasis {
             FitBasis::Band => "band fit",
             FitBasis::Estimation => "estimation fit",
         }
-    }
-}
-
-/// Settings of the model choice.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ReduceOptions {
-    pub basis: FitBasis,
-    /// Tolerance of the local-minimum test: relative on W, absolute on L1C (rules 3-4).
-    pub min_tolerance: f64,
-    /// Candidates within this many percentage points of the best score are tied (rule 6).
-    pub fit_tolerance: f64,
-    /// The rule to lead with; None: the default for the basis ([`rules::lead_rule`]).
-    pub rule: Option<Rule>,
-}
-
-impl ReduceOptions {
-    /// Default tolerances and lead rule with the given basis.
-    pub fn new(basis: FitBasis) -> Self {
-        ReduceOptions { basis, min_tolerance: DEFAULT_MIN_TOLERANCE, fit_tolerance: DEFAULT_FIT_TOLERANCE, rule: None }
     }
 }
 
@@ -308,13 +291,15 @@ pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
     for curve in curves(rows).values() {
         for (kind, minima) in [(Curve::W, &mut w_minima), (Curve::L1c, &mut l1c_minima)] {
             let values: Vec<f64> = curve.iter().map(|r| kind.value(r)).collect();
-            minima.extend(local_minima(&values, kind.tolerance(opts.min_tolerance)).into_iter().map(|i| curve[i]));
+            minima.extend(
+                local_minima(&values, kind.tolerance(opts.settings.min_tolerance)).into_iter().map(|i| curve[i]),
+            );
         }
     }
 
     let m1 = pick(&w_minima, opts, Curve::W);
     let m2 = pick(&l1c_minima, opts, Curve::L1c);
-    let (rule, rule_why) = rules::lead_rule(opts.rule, opts.basis);
+    let (rule, rule_why) = rules::lead_rule(opts.settings.rule, opts.basis);
     Selection {
         basis: opts.basis,
         picks: rules::picks(rows, m1.as_ref(), m2.as_ref(), opts),
@@ -324,8 +309,8 @@ pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
         m2,
         cells,
         failed,
-        min_tolerance: opts.min_tolerance,
-        fit_tolerance: opts.fit_tolerance,
+        min_tolerance: opts.settings.min_tolerance,
+        fit_tolerance: opts.settings.fit_tolerance,
         offset: None,
         input_level: None,
         initial_state: None,
@@ -354,13 +339,13 @@ fn pick(minima: &[&CellRow], opts: &ReduceOptions, curve: Curve) -> Option<Pick>
         .collect();
     candidates.sort_by(listing_order);
     let best = candidates.first()?.score;
-    let threshold = best - opts.fit_tolerance;
+    let threshold = best - opts.settings.fit_tolerance;
     let ties: Vec<&Candidate> = candidates.iter().filter(|c| c.score >= threshold).collect();
     let model = (*ties.iter().min_by(|a, b| tie_break(a, b))?).clone();
 
     let (curve_name, tolerance) = match curve {
-        Curve::W => ("the criterion W", format!("relative tolerance {}", opts.min_tolerance)),
-        Curve::L1c => ("the L1 contribution L1C", format!("absolute tolerance {}", opts.min_tolerance)),
+        Curve::W => ("the criterion W", format!("relative tolerance {}", opts.settings.min_tolerance)),
+        Curve::L1c => ("the L1 contribution L1C", format!("absolute tolerance {}", opts.settings.min_tolerance)),
     };
     let basis = opts.basis.describe();
     let skipped = minima.len() - candidates.len();
@@ -382,12 +367,12 @@ fn pick(minima: &[&CellRow], opts: &ReduceOptions, curve: Curve) -> Option<Pick>
          within {} points of it; this model is {how}",
         model.key.nb,
         model.key.nf,
-        model.k(),
+        crate::text::k(model.k()),
         model.k_index(),
         model.score,
         candidates.len(),
         if candidates.len() == 1 { "minimum" } else { "minima" },
-        opts.fit_tolerance,
+        opts.settings.fit_tolerance,
     );
     Some(Pick { model, rule, candidates, covariance: None })
 }
@@ -501,7 +486,12 @@ mod tests {
         assert_eq!(m1.candidates.iter().map(|c| (c.key.nb, c.key.nf)).collect::<Vec<_>>(), vec![(3, 5), (2, 4)]);
         assert!(m1.rule.contains("fewest parameters"), "{}", m1.rule);
         // Outside the margin the best fit wins.
-        let m1 = select(&rows, &ReduceOptions { fit_tolerance: 0.01, ..opts }).m1.unwrap();
+        let m1 = select(
+            &rows,
+            &ReduceOptions { settings: SelectionSettings { fit_tolerance: 0.01, ..opts.settings }, ..opts },
+        )
+        .m1
+        .unwrap();
         assert_eq!((m1.model.key.nb, m1.model.key.nf), (3, 5));
         assert!(m1.rule.contains("the only one"), "{}", m1.rule);
     }

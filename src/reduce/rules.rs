@@ -187,7 +187,7 @@ fn runner_up(chosen: &CellRow, ranked: &[(&CellRow, f64)]) -> Option<RunnerUp> {
 
 fn name(r: &CellRow) -> String {
     match r.k {
-        Some(k) => format!("OE({},{}) delay {} at k = {k}", r.key.nb, r.key.nf, r.key.delay),
+        Some(k) => format!("OE({},{}) delay {} at k = {}", r.key.nb, r.key.nf, r.key.delay, crate::text::k(k)),
         None => format!("OE({},{}) delay {} (least squares)", r.key.nb, r.key.nf, r.key.delay),
     }
 }
@@ -262,7 +262,7 @@ fn best_fit(pool: Vec<&CellRow>, opts: &ReduceOptions, note: Option<String>) -> 
     let Some(best) = scored.first().map(|c| c.score) else {
         return empty(measure, format!("{note}no model has a {basis}"));
     };
-    let ties: Vec<&Candidate> = scored.iter().filter(|c| c.score >= best - opts.fit_tolerance).collect();
+    let ties: Vec<&Candidate> = scored.iter().filter(|c| c.score >= best - opts.settings.fit_tolerance).collect();
     let model = (*ties.iter().min_by(|a, b| tie_break(a, b)).expect("the best is a tie")).clone();
     let ranked: Vec<(&CellRow, f64)> = scored.iter().map(|c| (&c.row, c.score)).collect();
     let up = runner_up(&model.row, &ranked);
@@ -273,7 +273,7 @@ fn best_fit(pool: Vec<&CellRow>, opts: &ReduceOptions, note: Option<String>) -> 
             "the fewest parameters (nB + nF = {}) among the {} within {} points of the best {best:.3} %",
             model.parameters(),
             ties.len(),
-            opts.fit_tolerance
+            opts.settings.fit_tolerance
         )
     };
     let versus = up.as_ref().map_or(String::new(), |u| {

@@ -50,6 +50,7 @@
 //! A missing or partial folder (no `cells.parquet`, `selection.json` or `job.json`) or a data file
 //! that is gone is an [`Error::Input`] naming the missing file.
 
+mod bootstrap;
 mod figures;
 mod html;
 pub(crate) mod plot;
@@ -227,7 +228,7 @@ fn build_sections(s: &Review) -> Result<Vec<Section>> {
     let grid = GridView::of(s, m2.or(m1));
     let mut sections = vec![picks_section(s, m1, m2), rules::rules_section(s)?];
     if !sel.bootstrap.is_empty() {
-        sections.push(bootstrap_section(sel));
+        sections.push(bootstrap::bootstrap_section(sel));
     }
     sections.push(curves_section(s, &grid, m1, m2)?);
     sections.push(maps_section(s, &grid, m1, m2)?);
@@ -293,7 +294,7 @@ fn picks_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -> Section 
                 "{name}: OE({},{}), k = {}, γ = {}",
                 m.key.nb,
                 m.key.nf,
-                plot::short(m.k()),
+                crate::text::k(m.k()),
                 plot::sig(m.gamma(), 4)
             );
             let mut title = title;
@@ -325,73 +326,6 @@ fn picks_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -> Section 
         }
     }
     Section { id: "picks", heading: "Picked models".into(), intro_html: intro, figures: vec![], notes: vec![] }
-}
-
-/// The bootstrap of the watched picks (the job's `uncertainty`, METHOD.md 17.3): per model its
-/// parameters' percentile intervals beside the sandwich std, and the intervals of G.
-fn bootstrap_section(sel: &Selection) -> Section {
-    use std::fmt::Write as _;
-    let mut h = String::new();
-    for p in &sel.bootstrap {
-        let b = &p.intervals;
-        let rules = p.rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
-        let k = p.k.map_or("least squares".to_string(), |k| format!("k = {}", plot::trimmed(k, 4)));
-        let pct = plot::trimmed(100.0 * b.level, 3);
-        let _ = writeln!(
-            h,
-            "<h3>OE({},{}) delay {} {k} (picked by {})</h3>\n<p class=\"meta\">{} replicates ({} failed, {} on the \
-             stability boundary), residual blocks of {} samples, seed {}.</p>",
-            p.nb,
-            p.nf,
-            p.delay,
-            esc(&rules),
-            b.replicates,
-            b.failed,
-            b.boundary,
-            b.block,
-            b.seed
-        );
-        let _ = writeln!(
-            h,
-            "<div class=\"params\"><div><table>\n<tr><th class=\"l\">parameter</th><th>value</th><th>std \
-             (sandwich)</th><th>std (bootstrap)</th><th>{pct} % interval</th></tr>"
-        );
-        for (i, iv) in b.parameters.iter().enumerate() {
-            let name = p.parameters.get(i).map_or("", String::as_str);
-            let value = p.values.get(i).map_or(String::new(), |v| plot::sig(*v, 6));
-            let std = p.sandwich_std.get(i).copied().flatten().map_or("-".to_string(), |s| plot::sig(s, 2));
-            let _ = writeln!(
-                h,
-                "<tr><td class=\"l\">{}</td><td>{value}</td><td>{std}</td><td>{}</td><td>[{}, {}]</td></tr>",
-                esc(name),
-                plot::sig(iv.std, 2),
-                plot::sig(iv.lower, 6),
-                plot::sig(iv.upper, 6)
-            );
-        }
-        h.push_str(
-            "</table></div>\n<div><table>\n<tr><th>f [Hz]</th><th>|G| interval</th><th>phase interval [°]</th></tr>\n",
-        );
-        for ((w, m), ph) in b.frequencies.iter().zip(&b.magnitude).zip(&b.phase_deg) {
-            let _ = writeln!(
-                h,
-                "<tr><td>{}</td><td>[{}, {}]</td><td>[{:.1}, {:.1}]</td></tr>",
-                plot::sig(w / (std::f64::consts::TAU * p.ts), 4),
-                plot::sig(m.lower, 4),
-                plot::sig(m.upper, 4),
-                ph.lower,
-                ph.upper
-            );
-        }
-        h.push_str("</table></div></div>\n");
-    }
-    h.push_str(
-        "<p class=\"meta\">A parametric residual-block bootstrap of the whole estimation (starts included): each \
-         replicate is the picked model's simulated output plus circular blocks of its residuals, estimated again \
-         from the start. Where the intervals are much wider than ± 2 sandwich std, or lopsided, the local \
-         covariance does not describe the uncertainty (METHOD.md 17.3).</p>\n",
-    );
-    Section { id: "bootstrap", heading: "Bootstrap of the picks".into(), intro_html: h, figures: vec![], notes: vec![] }
 }
 
 /// W and L1C over nF at the picks' k (paper Figs. 10 and 12).

@@ -213,37 +213,11 @@ pub fn quantile(values: &[f64], q: f64) -> Option<f64> {
     Some(if i + 1 < v.len() { v[i] + frac * (v[i + 1] - v[i]) } else { v[i] })
 }
 
-/// `v` with `digits` significant digits, in exponent form when very small or large.
-pub fn sig(v: f64, digits: usize) -> String {
-    if !v.is_finite() {
-        return "n/a".into();
-    }
-    if v == 0.0 {
-        return "0".into();
-    }
-    let mag = v.abs().log10().floor() as i32;
-    if !(-3..6).contains(&mag) {
-        return format!("{:.*e}", digits.saturating_sub(1), v);
-    }
-    let decimals = (digits as i32 - 1 - mag).max(0) as usize;
-    let s = format!("{v:.decimals$}");
-    // "-0.000" would read as a sign error on an axis.
-    if s.trim_start_matches('-').chars().all(|c| c == '0' || c == '.') { "0".into() } else { s }
-}
+pub use crate::text::{sig, trimmed};
 
 /// Tick label: three significant digits without trailing zeros ("0.6", "1", "2.5e-5").
 pub fn short(v: f64) -> String {
     trimmed(v, 3)
-}
-
-/// `digits` significant digits without trailing zeros ("0.6034", "0.05", "2.5e-5").
-pub fn trimmed(v: f64, digits: usize) -> String {
-    let s = sig(v, digits);
-    match s.split_once('e') {
-        Some((m, e)) if m.contains('.') => format!("{}e{e}", m.trim_end_matches('0').trim_end_matches('.')),
-        None if s.contains('.') => s.trim_end_matches('0').trim_end_matches('.').to_string(),
-        _ => s,
-    }
 }
 
 /// Tick label of a log10-transformed axis: the value itself.

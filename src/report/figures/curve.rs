@@ -47,7 +47,8 @@ pub fn curve_figure(
         Curve::W => ("criterion W", "W = (1/N) Σ ρ_γ(e_t)  [(output unit)²]", "10"),
         Curve::L1c => ("L1 contribution L1C", "L1C = share of samples with |e_t| > γ  [%]", "12"),
     };
-    let title_text = format!("{what} versus nF at k = {} (one line per nB; cf. paper Fig. {fig_no})", short(k));
+    let title_text =
+        format!("{what} versus nF at k = {} (one line per nB; cf. paper Fig. {fig_no})", crate::text::k(k));
     let mut minima_count = 0;
     let svg = render((1000, 560), |root| {
         let body = title(root, &title_text, 17.0)?;
@@ -97,7 +98,7 @@ pub fn curve_figure(
         "{what} of every Huber cell at k = {} (k index {k_index}) against the number of poles nF, one line per \
          nB. Rings mark the local minima over nF ({minima_count} here; tolerance {min_tolerance}, {}), the \
          candidates the {} pick is chosen from{}.",
-        short(k),
+        crate::text::k(k),
         if curve == Curve::W { "relative" } else { "absolute on the share" },
         if curve == Curve::W { "M1" } else { "M2" },
         pick.map(|p| format!("; the thick black ring is the pick, {}", p.label())).unwrap_or_default(),

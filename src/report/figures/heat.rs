@@ -32,7 +32,7 @@ pub fn heat_figure(
     ];
     let n_rows = nb_hi - nb_lo + 1;
     let height = (150 + 34 * n_rows).clamp(330, 900);
-    let title_text = format!("Heat maps over (nB, nF) at k = {} (k index {k_index})", short(k));
+    let title_text = format!("Heat maps over (nB, nF) at k = {} (k index {k_index})", crate::text::k(k));
     let mut clipped_note = Vec::new();
     let svg = render((HEAT_WIDTH, height), |root| {
         let body = title(root, &title_text, 17.0)?;
@@ -146,7 +146,7 @@ pub fn heat_figure(
         "Every Huber cell at k = {}: the criterion W, the L1 contribution L1C and the model-choice fit \
          ({fit_name}), one square per (nB, nF), with its value printed when there is room. Colour scales are \
          per panel; bright is good on all three. {}",
-        short(k),
+        crate::text::k(k),
         if clipped_note.is_empty() { String::new() } else { format!("Scales clipped: {}.", clipped_note.join("; ")) }
     );
     Ok(Figure { file: file.into(), alt: title_text, caption, svg })

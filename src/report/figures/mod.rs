@@ -1,7 +1,6 @@
 //! The report's figures: each function prepares the numbers of one figure and draws it as SVG.
 //! What each figure shows, and why, is documented in the parent module; one file per figure.
 
-use super::plot::*;
 use crate::reduce::Candidate;
 use plotters::prelude::*;
 
@@ -45,6 +44,6 @@ pub struct Picked<'a> {
 impl Picked<'_> {
     /// "M1 OE(9,9), k = 0.05".
     pub fn label(&self) -> String {
-        format!("{} OE({},{}), k = {}", self.name, self.model.key.nb, self.model.key.nf, short(self.model.k()))
+        format!("{} OE({},{}), k = {}", self.name, self.model.key.nb, self.model.key.nf, crate::text::k(self.model.k()))
     }
 }

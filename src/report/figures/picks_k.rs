@@ -22,12 +22,12 @@ pub fn picks_by_k_figure(
     selection: &Selection,
     file: &str,
 ) -> std::result::Result<Figure, String> {
-    let opts = ReduceOptions {
-        basis: selection.basis,
+    let settings = reduce::SelectionSettings {
         min_tolerance: selection.min_tolerance,
         fit_tolerance: selection.fit_tolerance,
         rule: Some(selection.rule),
     };
+    let opts = ReduceOptions { basis: selection.basis, settings };
     let (fit_name, fit_of) = (selection.basis.column(), move |r: &CellRow| selection.basis.score(r));
     // select() on the rows of one k applies exactly the reducer's rules to that k alone.
     let mut per_k: Vec<KPicks> = Vec::new();
