@@ -225,14 +225,9 @@ fn zoh_inverse(num: &[f64], den: &[f64], roots: &[(f64, f64)]) -> Result<(Vec<f6
     // diagonal) and B = e1: C (zI - A)^-1 B = c(z)/den(z).
     let m = Mat::<f64>::from_fn(n + 1, n + 1, |i, j| match (i, j) {
         (0, j) if j < n => -den[j + 1],
-        (0, j) if j == n => 1.0,
-        (i, j) if i == n => {
-            if j == n {
-                1.0
-            } else {
-                0.0
-            }
-        }
+        (0, _) => 1.0,
+        (i, j) if i == n && j == n => 1.0,
+        (i, _) if i == n => 0.0,
         (i, j) if i == j + 1 => 1.0,
         _ => 0.0,
     });
@@ -373,7 +368,8 @@ mod tests {
         let mut sum = Mat::<f64>::identity(n, n);
         let mut term = Mat::<f64>::identity(n, n);
         for k in 1..=20 {
-            term = Mat::from_fn(n, n, |i, j| (&term * &b)[(i, j)] / k as f64);
+            let next = &term * &b;
+            term = Mat::from_fn(n, n, |i, j| next[(i, j)] / k as f64);
             sum = Mat::from_fn(n, n, |i, j| sum[(i, j)] + term[(i, j)]);
         }
         for _ in 0..s {
@@ -432,10 +428,9 @@ mod tests {
                 (nz.iter().map(|v| v / dz[0]).collect(), dz.iter().map(|v| v / dz[0]).collect())
             }
         };
-        for _ in 0..c.delay_samples {
-            nz.insert(0, 0.0);
-            dz.push(0.0);
-        }
+        let k = c.delay_samples as usize;
+        nz.splice(0..0, std::iter::repeat_n(0.0, k));
+        dz.resize(dz.len() + k, 0.0);
         (nz, dz)
     }
 
@@ -452,8 +447,8 @@ mod tests {
     /// gives d - 1 samples of dead time: the hold's own sample belongs to the system.
     #[test]
     fn a_first_order_lag_comes_back_exactly() {
-        let (ts, tau, gain) = (0.1, 0.5, 2.0);
-        let p = (-ts / tau as f64).exp();
+        let (ts, tau, gain) = (0.1f64, 0.5, 2.0);
+        let p = (-ts / tau).exp();
         for delay in [1usize, 3] {
             let mut num = vec![0.0; delay + 1];
             num[delay] = gain * (1.0 - p);
