@@ -497,6 +497,17 @@ mod tests {
             close(&format!("{method} num"), &nz, &num, 1e-9);
             close(&format!("{method} den"), &dz, &den, 1e-9);
         }
+        // Order 8: three resonances and two real poles, delay 1, a short sample time.
+        let f = crate::oe::poly_from_poles(&[(0.985, 0.45), (0.97, 1.3), (0.9, 2.2)], &[0.8, 0.5]);
+        let b = [0.02, 0.05, -0.03, 0.04, 0.01, -0.02, 0.03, 0.015];
+        let num: Vec<f64> = std::iter::once(0.0).chain(b).collect();
+        let den: Vec<f64> = std::iter::once(1.0).chain(f).collect();
+        for method in [Method::Zoh, Method::Tustin] {
+            let c = to_continuous(&num, &den, 1e-4, method).unwrap();
+            let (nz, dz) = c2d(&c, 1e-4);
+            close(&format!("order 8 {method} num"), &nz, &num, 1e-9);
+            close(&format!("order 8 {method} den"), &dz, &den, 1e-9);
+        }
         // A pole at z = 1 and one at 0.5, with a direct feedthrough (delay 0).
         let (num, den) = (vec![0.3, 0.1, -0.05], vec![1.0, -1.5, 0.5]);
         let c = to_continuous(&num, &den, 0.5, Method::Zoh).unwrap();
