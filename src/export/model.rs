@@ -11,6 +11,8 @@
 //! ```
 //!
 //! so that `num(z)/den(z) = z^-d B(z^-1)/F(z^-1)` (the common factor z^-(L-1) cancels).
+//! With `--continuous`, each form also carries the model's continuous-time equivalent
+//! ([`super::continuous`]).
 
 use super::continuous::{self, ContinuousModel, Method, NoEquivalent};
 use crate::error::{Error, Result};
