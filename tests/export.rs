@@ -131,3 +131,94 @@ fn any_rule_or_cell_leaves_with_a_covariance_computed_from_the_records() {
         assert!(o.stdout.is_empty() && !target.exists(), "{args:?}");
     }
 }
+
+/// `--continuous zoh|tustin`: the continuous equivalent beside the discrete model, in every
+/// format, the same numbers as the library's; a pick with no ZOH equivalent is one line, exit
+/// 2 and no file.
+#[test]
+fn continuous_equivalents_leave_with_the_model() {
+    use oesweep::export::continuous::{Method, to_continuous};
+    let dir = tempfile::tempdir().unwrap();
+    let out = finished_run(dir.path());
+    let folder = out.to_str().unwrap();
+    for method in [Method::Zoh, Method::Tustin] {
+        let j = json(&oesweep(&["export", folder, "--to", "json", "--continuous", method.as_str()]));
+        let floats =
+            |v: &serde_json::Value| -> Vec<f64> { v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect() };
+        let want = to_continuous(&floats(&j["num"]), &floats(&j["den"]), 0.01, method).unwrap();
+        let c = &j["continuous"];
+        assert_eq!(c["method"], method.as_str());
+        assert_eq!(floats(&c["num"]), want.num);
+        assert_eq!(floats(&c["den"]), want.den);
+        assert_eq!(c["den"][0], 1.0);
+        // Delay 1 is the hold's own sample: no dead time.
+        assert_eq!((c["delay_samples"].as_u64(), c["input_delay"].as_f64()), (Some(0), Some(0.0)), "{c}");
+        // The discrete document is unchanged.
+        let plain = json(&oesweep(&["export", folder, "--to", "json"]));
+        let mut without = j.clone();
+        without.as_object_mut().unwrap().remove("continuous");
+        assert_eq!(without, plain);
+
+        let o = oesweep(&["export", folder, "--to", "matlab", "--continuous", method.as_str()]);
+        let script = String::from_utf8_lossy(&o.stdout);
+        assert!(script.contains("Gc = tf(numc, denc, 'InputDelay', input_delay);"), "{script}");
+        assert!(script.contains(&format!("continuous-time equivalent ({method})")), "{script}");
+
+        let mat_path = dir.path().join(format!("{method}.mat"));
+        let o = oesweep(&[
+            "export",
+            folder,
+            "--to",
+            "mat",
+            "--continuous",
+            method.as_str(),
+            "--out",
+            mat_path.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let mat = matfile::MatFile::parse(std::fs::File::open(&mat_path).unwrap()).unwrap();
+        match mat.find_by_name("denc").expect("denc").data() {
+            matfile::NumericData::Double { real, .. } => assert_eq!(real, &want.den),
+            other => panic!("denc: {other:?}"),
+        }
+    }
+
+    // Every cell of the table whose model has no ZOH equivalent is refused, and every other one
+    // leaves: a real pole below zero, or (delay 1) nB > nF + 1, more B than the poles hold,
+    // which leaves poles at the origin beyond the delay.
+    let rows = oesweep::results::read_results(&out).unwrap().rows;
+    let mut refused = 0;
+    for r in rows.iter().filter(|r| r.ok() && r.k.is_some()) {
+        let pick = format!("{},{},{}", r.key.nb, r.key.nf, r.k.unwrap());
+        let target = dir.path().join("c.json");
+        let o = oesweep(&[
+            "export",
+            folder,
+            "--pick",
+            &pick,
+            "--to",
+            "json",
+            "--continuous",
+            "zoh",
+            "--out",
+            target.to_str().unwrap(),
+        ]);
+        let negative = oesweep::oe::poles(&r.fit.f).iter().any(|&(re, im)| re < 0.0 && im.abs() <= 1e-8 * re.abs());
+        let at_origin = r.key.nb > r.key.nf + 1;
+        if negative || at_origin {
+            refused += 1;
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(2), "{pick}: {err}");
+            let why = if at_origin { "origin" } else { "negative real axis" };
+            assert!(err.contains("--continuous zoh") && err.contains(why), "{err}");
+            assert_eq!(err.lines().count(), 1, "{err}");
+            assert!(!target.exists());
+        } else {
+            assert!(o.status.success(), "{pick}: {}", String::from_utf8_lossy(&o.stderr));
+            std::fs::remove_file(&target).unwrap();
+        }
+    }
+    assert!(refused > 0 && refused < rows.len(), "{refused} of {} refused", rows.len());
+    let o = oesweep(&["export", folder, "--to", "json", "--continuous", "foh"]);
+    assert_eq!(o.status.code(), Some(2));
+}

@@ -2,7 +2,9 @@
 # `oesweep export --to matlab` run in GNU Octave (Debian's octave and octave-control): the
 # script must build the `tf` with the coefficients of the JSON export (num, den; Octave drops a
 # numerator's leading zeros, which leaves the polynomial as it is) and the covariance of the
-# MAT-file's and JSON's. The run is the bundled piezo example, cut down to a small grid.
+# MAT-file's and JSON's; the continuous equivalents of `--continuous zoh|tustin` must be Octave's
+# `d2c` of the model without its dead time, and the script's `Gc` must be built from them. The
+# run is the bundled piezo example, cut down to a small grid.
 #
 # Needs root and apt-get to install Octave when it is missing (~30 s); without them it says so
 # and exits 0 (1 under CI=true: the export to MATLAB must be checked by a real interpreter).
@@ -49,6 +51,9 @@ EOF
 "$bin" export "$tmp/run" --to json --out "$tmp/model.json" >/dev/null
 "$bin" export "$tmp/run" --to matlab --out "$tmp/model.m" >/dev/null
 "$bin" export "$tmp/run" --to mat --out "$tmp/model.mat" >/dev/null
+"$bin" export "$tmp/run" --to json --continuous zoh --out "$tmp/zoh.json" 2>/dev/null
+"$bin" export "$tmp/run" --to json --continuous tustin --out "$tmp/tustin.json" 2>/dev/null
+"$bin" export "$tmp/run" --to matlab --continuous zoh --out "$tmp/modelc.m" 2>/dev/null
 
 # Octave runs the script and prints what it built, full precision.
 cat >"$tmp/check.m" <<'EOF'
@@ -60,15 +65,28 @@ printf('den'); printf(' %.17g', d); printf('\n');
 printf('Ts %.17g\n', get(G, 'tsam'));
 printf('cov'); printf(' %.17g', covariance(:)'); printf('\n');
 printf('matcov'); printf(' %.17g', m.covariance(:)'); printf('\n');
+modelc
+[n, d] = tfdata(Gc, 'v');
+printf('gcnum'); printf(' %.17g', n); printf('\n');
+printf('gcden'); printf(' %.17g', d); printf('\n');
+% The model without its dead time (z^k G), through Octave's own d2c.
+k = round(input_delay / Ts);
+H = tf(num(k+1:end), den(1:end-k), Ts);
+for method = {'zoh', 'tustin'}
+  [n, d] = tfdata(d2c(H, method{1}), 'v');
+  printf('%snum', method{1}); printf(' %.17g', n); printf('\n');
+  printf('%sden', method{1}); printf(' %.17g', d); printf('\n');
+end
 EOF
 (cd "$tmp" && octave-cli --no-gui --quiet --no-window-system check.m >octave.out 2>octave.err) || {
     cat "$tmp/octave.err"
     echo "octave_export: FAILED: Octave could not run the exported script"
     exit 1
 }
-python3 - "$tmp/model.json" "$tmp/octave.out" <<'EOF'
-import json, sys
+python3 - "$tmp/model.json" "$tmp/octave.out" "$tmp/zoh.json" "$tmp/tustin.json" <<'EOF'
+import cmath, json, math, sys
 model = json.load(open(sys.argv[1]))
+continuous = {m: json.load(open(p))["continuous"] for m, p in (("zoh", sys.argv[3]), ("tustin", sys.argv[4]))}
 got = {}
 for line in open(sys.argv[2]):
     key, *vals = line.split()
@@ -94,6 +112,22 @@ assert cov, "the pick has no covariance"
 # Octave prints column-major; the matrix is symmetric, and the check is that it is.
 close("covariance", got["cov"], cov)
 close("MAT covariance", got["matcov"], cov)
+
+def response(num, den, s):
+    value = lambda p: sum(c * s ** (len(p) - 1 - i) for i, c in enumerate(p))
+    return value(num) / value(den)
+
+# The continuous equivalents against Octave's d2c, on the imaginary axis up to 0.9 of Nyquist
+# (the coefficients span ten decades); the script's Gc is the exported one, digit for digit.
+nyquist = math.pi / model["dt"]
+for method, c in continuous.items():
+    assert c["method"] == method and c["input_delay"] == c["delay_samples"] * model["dt"], c
+    for i in range(1, 31):
+        s = 1j * nyquist * 0.9 * i / 30
+        ours, octave = response(c["num"], c["den"], s), response(got[method + "num"], got[method + "den"], s)
+        assert abs(ours - octave) <= 1e-9 * abs(octave), f"{method} at {s}: exported {ours}, Octave's d2c {octave}"
+close("Gc num", got["gcnum"], continuous["zoh"]["num"], 0.0)
+close("Gc den", got["gcden"], continuous["zoh"]["den"], 0.0)
 print(f"octave_export: ok (tf of OE({len(model['b'])}, {len(model['f'])}) delay {model['delay']}, "
-      f"{len(cov)} covariance entries)")
+      f"{len(cov)} covariance entries, continuous equivalents as Octave's d2c)")
 EOF

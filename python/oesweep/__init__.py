@@ -21,7 +21,10 @@ import numpy as np
 from . import _oesweep
 from ._oesweep import DataError, JobError
 
-__all__ = ["fit", "read", "sweep", "load", "spectrum", "Model", "Sweep", "JobError", "DataError", "__version__"]
+__all__ = [
+    "fit", "read", "sweep", "load", "spectrum", "Model", "ContinuousModel", "Sweep", "JobError", "DataError",
+    "__version__",
+]
 __version__ = _oesweep.__version__
 
 ArrayLike = Union[np.ndarray, Sequence[float], Any]
@@ -118,6 +121,15 @@ class Model:
         num, den = self.num_den
         return control.tf(num, den, float(self.ts))
 
+    def to_continuous(self, method: str = "zoh") -> "ContinuousModel":
+        """The continuous-time equivalent for control design, as ``oesweep export --continuous``
+        computes it: ``"zoh"`` (the continuous system whose zero-order-hold sampling is the
+        model) or ``"tustin"`` (the inverse bilinear map). The delay leaves as a dead time
+        (``input_delay``, seconds), never as poles. ValueError, naming the pole, when there is no
+        equivalent: under ZOH a pole at or near z = 0 or on the negative real axis, under
+        Tustin a pole at z = -1."""
+        return ContinuousModel(json.loads(_oesweep.to_continuous(json.dumps(self._document()), method)))
+
     def to_dict(self) -> Dict[str, Any]:
         """The model's fields (JSON-serialisable); ``Model(d)`` rebuilds it."""
         return json.loads(json.dumps(self._fields))
@@ -127,8 +139,22 @@ class Model:
         ``den``, ``dt``, offset, delay, covariance), ``"matlab"`` (a script that builds the
         ``tf`` and, with the System Identification Toolbox, the ``idpoly``) or ``"mat"`` (a
         level-5 MAT-file, ``path`` required). Writes ``path`` when given, else returns the text."""
+        doc = self._document()
+        if to == "mat":
+            if path is None:
+                raise JobError('to="mat" writes a binary file: give its path')
+            _oesweep.write_model(json.dumps(doc), to, str(path))
+            return None
+        text = _oesweep.write_model(json.dumps(doc), to)
+        if path is None:
+            return text
+        Path(path).write_text(text)
+        return None
+
+    def _document(self) -> Dict[str, Any]:
+        """The model as the document of ``oesweep export --to json`` (what the engine reads back)."""
         k = f" at k = {self.k}" if self.k is not None else " (least squares)"
-        doc = {
+        return {
             "model": self.model or f"OE({len(self.b)},{len(self.f)}) delay {self.delay}{k}",
             "dt": float(self.ts),
             "b": list(self.b),
@@ -143,21 +169,45 @@ class Model:
             if self.noise_variance is not None
             else (float(self.sigma) ** 2 if self.sigma is not None else None),
         }
-        if to == "mat":
-            if path is None:
-                raise JobError('to="mat" writes a binary file: give its path')
-            _oesweep.write_model(json.dumps(doc), to, str(path))
-            return None
-        text = _oesweep.write_model(json.dumps(doc), to)
-        if path is None:
-            return text
-        Path(path).write_text(text)
-        return None
 
     def __repr__(self) -> str:
         k = f" k = {self.k}" if self.k is not None else " (least squares)"
         fits = [f"{name} = {v:.2f} %" for name, v in (("fit", self.fit), ("fit_val", self.fit_val)) if v is not None]
         return f"Model(OE({len(self.b)}, {len(self.f)}) delay {self.delay}{k}{', ' if fits else ''}{', '.join(fits)})"
+
+
+class ContinuousModel:
+    """``Gc(s) = exp(-input_delay s) num(s)/den(s)``, a model's continuous-time equivalent
+    (:meth:`Model.to_continuous`): ``num``, ``den`` in descending powers of s (``den`` monic),
+    ``input_delay`` in seconds (``delay_samples`` of the sample time), ``method``."""
+
+    def __init__(self, fields: Dict[str, Any]):
+        self.method = fields["method"]
+        self.num = np.array(fields["num"], dtype=np.float64)
+        self.den = np.array(fields["den"], dtype=np.float64)
+        self.input_delay = float(fields["input_delay"])
+        self.delay_samples = int(fields["delay_samples"])
+
+    def to_scipy(self):
+        """``scipy.signal.lti(num, den)``: without the dead time ``input_delay``, which scipy's
+        systems do not hold."""
+        from scipy.signal import lti
+
+        return lti(self.num, self.den)
+
+    def to_control(self):
+        """A continuous python-control ``TransferFunction``: without the dead time
+        ``input_delay``, which python-control's ``tf`` does not hold (``control.pade`` gives a
+        rational approximation to multiply in)."""
+        try:
+            import control
+        except ImportError as e:
+            raise ImportError("ContinuousModel.to_control needs the python-control package: pip install control") from e
+        return control.tf(self.num, self.den)
+
+    def __repr__(self) -> str:
+        return (f"ContinuousModel({self.method}, order {len(self.den) - 1}, "
+                f"input_delay = {self.input_delay:g} s)")
 
 
 def fit(

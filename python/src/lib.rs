@@ -209,6 +209,18 @@ fn write_model(doc: &str, to: &str, out: Option<PathBuf>) -> PyResult<String> {
     }
 }
 
+/// The continuous-time equivalent (`oesweep export --continuous`) of a model document (`oesweep
+/// export --to json`'s form) by `method` = "zoh" or "tustin", as JSON text: `method`, `num`,
+/// `den` (descending powers of s), `input_delay` (seconds), `delay_samples`. A model without
+/// an equivalent raises ValueError naming the pole.
+#[pyfunction]
+fn to_continuous(doc: &str, method: &str) -> PyResult<String> {
+    let model = oesweep::export::model::ModelOut::from_json_text(doc).map_err(JobError::new_err)?;
+    let method = method.parse::<oesweep::export::continuous::Method>().map_err(JobError::new_err)?;
+    let c = model.to_continuous(method).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    serde_json::to_string(&c).map_err(|e| PyRuntimeError::new_err(e.to_string()))
+}
+
 /// The u and y columns of a data file named as a job file names a record (JSON text of its
 /// fields), as little-endian float64 bytes.
 #[pyfunction]
@@ -234,6 +246,7 @@ fn _oesweep(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(export, m)?)?;
     m.add_function(wrap_pyfunction!(write_model, m)?)?;
     m.add_function(wrap_pyfunction!(read, m)?)?;
+    m.add_function(wrap_pyfunction!(to_continuous, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -285,6 +285,17 @@ def test_models_leave_as_the_command_line_exports_them_and_the_mat_file_reads_ba
         assert m.export(to="json") == o.stdout
         o = cli("export", str(out), "--pick", pick, "--to", "matlab")
         assert m.export(to="matlab") == o.stdout
+        # The continuous equivalent: the same numbers, or the same refusal.
+        for method in ("zoh", "tustin"):
+            o = cli("export", str(out), "--pick", pick, "--to", "json", "--continuous", method)
+            try:
+                c = m.to_continuous(method)
+            except ValueError as e:
+                assert o.returncode == 2 and str(e) in o.stderr, o.stderr
+            else:
+                assert o.returncode == 0, o.stderr
+                doc = json.loads(o.stdout)["continuous"]
+                assert (doc["num"], doc["den"], doc["input_delay"]) == (list(c.num), list(c.den), c.input_delay)
         o = cli("export", str(out), "--pick", pick, "--to", "mat", "--out", str(tmp_path / f"{pick}.mat"))
         assert o.returncode == 0, o.stderr
         m.export(tmp_path / f"{pick}-py.mat", to="mat")
@@ -308,6 +319,65 @@ def test_models_leave_as_the_command_line_exports_them_and_the_mat_file_reads_ba
         m.export(to="mat")
     with pytest.raises(oesweep.JobError, match="expected json, matlab or mat"):
         m.export(to="csv")
+
+
+def lightly_damped(delay=3, ts=1e-3):
+    """An OE(4,4) model with two lightly damped modes (poles at radius 0.99 and 0.95)."""
+    poles = [0.99 * np.exp(0.3j), 0.99 * np.exp(-0.3j), 0.95 * np.exp(1.1j), 0.95 * np.exp(-1.1j)]
+    f = [float(v) for v in np.real(np.poly(poles))[1:]]
+    return oesweep.Model({"b": [0.02, -0.011, 0.004, 0.007], "f": f, "delay": delay, "ts": ts, "input_level": 0.0})
+
+
+def test_continuous_equivalents_sample_back_to_the_model_in_python_control():
+    control = pytest.importorskip("control")
+    m = lightly_damped()
+    freq = np.linspace(1.0, 450.0, 31)  # up to 0.9 of Nyquist
+    z = np.exp(2j * np.pi * freq * m.ts)
+    for method in ("zoh", "tustin"):
+        c = m.to_continuous(method)
+        # Delay 3: two samples of dead time and the hold's one.
+        assert (c.method, c.delay_samples, c.den[0], len(c.den)) == (method, 2, 1.0, 5)
+        assert c.input_delay == pytest.approx(2e-3, rel=1e-15)
+        gd = control.sample_system(c.to_control(), m.ts, method=method)
+        np.testing.assert_allclose(gd(z) * z ** -c.delay_samples, m.frequency_response(freq), rtol=1e-8)
+        # scipy's continuous system is the same transfer function.
+        _, h = scipy.signal.freqresp(c.to_scipy(), w=2 * np.pi * freq)
+        np.testing.assert_allclose(h, c.to_control()(2j * np.pi * freq), rtol=1e-12)
+    assert "zoh" in repr(m.to_continuous())
+
+
+def test_the_zoh_equivalent_is_scipys_matrix_logarithm():
+    """The engine's logarithm (inverse scaling and squaring) against scipy.linalg.logm of
+    [[A, B], [0, 1]] for the model without its dead time, compared on the imaginary axis."""
+    import scipy.linalg
+
+    m = lightly_damped()
+    num, den = m.num_den
+    # z^2 G: the two samples of dead time off.
+    h_num, h_den = np.trim_zeros(num, "f"), den[: len(den) - 2]
+    a, b, cc, d = scipy.signal.tf2ss(h_num, h_den)
+    n = a.shape[0]
+    block = np.block([[a, b], [np.zeros((1, n)), np.ones((1, 1))]])
+    log = np.real(scipy.linalg.logm(block)) / m.ts
+    want = scipy.signal.ss2tf(log[:n, :n], log[:n, n:], cc, d)
+    c = m.to_continuous("zoh")
+    s = 2j * np.pi * np.linspace(1.0, 450.0, 31)
+    np.testing.assert_allclose(
+        np.polyval(c.num, s) / np.polyval(c.den, s), np.polyval(want[0][0], s) / np.polyval(want[1], s), rtol=1e-8
+    )
+
+
+def test_models_without_a_continuous_equivalent_say_which_pole():
+    m = oesweep.Model({"b": [1.0], "f": [0.5], "delay": 1, "ts": 0.1})
+    with pytest.raises(ValueError, match=r"z = -0\.5.*negative real axis"):
+        m.to_continuous("zoh")
+    assert m.to_continuous("tustin").den[-1] > 0  # Tustin maps it
+    with pytest.raises(ValueError, match="s = infinity"):
+        oesweep.Model({"b": [1.0], "f": [1.0], "delay": 1, "ts": 0.1}).to_continuous("tustin")
+    with pytest.raises(ValueError, match="origin"):
+        oesweep.Model({"b": [1.0, 0.5], "f": [0.0], "delay": 1, "ts": 0.1}).to_continuous("zoh")
+    with pytest.raises(oesweep.JobError, match="expected zoh or tustin"):
+        m.to_continuous("foh")
 
 
 def test_read_takes_a_file_as_a_job_names_a_record(tmp_path):

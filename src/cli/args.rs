@@ -50,6 +50,10 @@ pub struct ExportArgs {
     /// File to write (default: standard output; required for mat).
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    /// Also write the continuous-time equivalent for control design: zoh (the inverse of the
+    /// zero-order hold) or tustin (the inverse bilinear map); the delay becomes a dead time.
+    #[arg(long, value_name = "zoh|tustin")]
+    pub continuous: Option<crate::export::continuous::Method>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

@@ -62,15 +62,19 @@ fn run_export(a: &args::ExportArgs) -> Result<u8> {
         return Err(Error::Invalid("--to mat writes a binary file: name it with --out FILE".into()));
     }
     let (model, notes) = engine::export_model(&a.folder, a.pick.as_ref())?;
+    let continuous = a
+        .continuous
+        .map(|m| model.to_continuous(m).map_err(|e| Error::Invalid(format!("--continuous {m}: {}: {e}", model.name))))
+        .transpose()?;
     for n in &notes {
         eprintln!("warning: {n}");
     }
     let text = match a.to {
-        ExportFormat::Json => model.to_json_text(),
-        ExportFormat::Matlab => model.to_matlab(),
+        ExportFormat::Json => model.to_json_text_with(continuous.as_ref()),
+        ExportFormat::Matlab => model.to_matlab_with(continuous.as_ref()),
         ExportFormat::Mat => {
             let out = a.out.as_ref().expect("checked above");
-            model.write_mat(out)?;
+            model.write_mat_with(out, continuous.as_ref())?;
             eprintln!("wrote {} ({})", out.display(), model.name);
             return Ok(0);
         }

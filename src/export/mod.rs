@@ -6,6 +6,7 @@
 //! process is killed mid-write. The temporary file lives in the target folder because a rename is
 //! only atomic within one file system.
 
+pub mod continuous;
 pub mod json;
 pub mod model;
 pub mod parquet;

@@ -11,7 +11,10 @@
 //! ```
 //!
 //! so that `num(z)/den(z) = z^-d B(z^-1)/F(z^-1)` (the common factor z^-(L-1) cancels).
+//! With `--continuous`, each form also carries the model's continuous-time equivalent
+//! ([`super::continuous`]).
 
+use super::continuous::{self, ContinuousModel, Method, NoEquivalent};
 use crate::error::{Error, Result};
 use std::fmt::Write;
 use std::path::Path;
@@ -89,6 +92,12 @@ impl ModelOut {
         (num, den)
     }
 
+    /// The continuous-time equivalent by `method` ([`super::continuous`]).
+    pub fn to_continuous(&self, method: Method) -> std::result::Result<ContinuousModel, NoEquivalent> {
+        let (num, den) = self.num_den();
+        continuous::to_continuous(&num, &den, self.ts, method)
+    }
+
     fn covariance_rows(&self) -> Option<Vec<Vec<f64>>> {
         let n = self.parameters.len();
         self.covariance.as_ref().filter(|c| c.len() == n * n).map(|c| c.chunks(n).map(<[f64]>::to_vec).collect())
@@ -97,7 +106,14 @@ impl ModelOut {
     /// The JSON document of `oesweep export --to json` as text, its fields in the order of
     /// [`Doc`] (num, den and dt first).
     pub fn to_json_text(&self) -> String {
-        serde_json::to_string_pretty(&self.doc()).expect("JSON of numbers") + "\n"
+        self.to_json_text_with(None)
+    }
+
+    /// [`Self::to_json_text`] with the continuous equivalent as a `continuous` object (`method`,
+    /// `num`, `den`, `input_delay`, `delay_samples`) after the discrete fields.
+    pub fn to_json_text_with(&self, continuous: Option<&ContinuousModel>) -> String {
+        let doc = Doc { continuous, ..self.doc() };
+        serde_json::to_string_pretty(&doc).expect("JSON of numbers") + "\n"
     }
 
     /// The same document as a value (its map sorts the keys).
@@ -121,6 +137,7 @@ impl ModelOut {
             parameters: &self.parameters,
             covariance: self.covariance_rows(),
             noise_variance: self.noise_variance,
+            continuous: None,
         }
     }
 
@@ -128,6 +145,12 @@ impl ModelOut {
     /// and `sys = idpoly(...)` with its covariance where the System Identification Toolbox is
     /// installed.
     pub fn to_matlab(&self) -> String {
+        self.to_matlab_with(None)
+    }
+
+    /// [`Self::to_matlab`] that also builds the continuous equivalent `Gc` (with its dead time
+    /// as `InputDelay` in MATLAB; Octave's `tf` has none, so there `input_delay` stands beside it).
+    pub fn to_matlab_with(&self, continuous: Option<&ContinuousModel>) -> String {
         let (num, den) = self.num_den();
         let row = |v: &[f64]| v.iter().map(|x| matlab_number(*x)).collect::<Vec<_>>().join(", ");
         let mut s = String::new();
@@ -169,6 +192,19 @@ impl ModelOut {
         let _ = writeln!(s, "    sys = setcov(sys, covariance(1:{np}, 1:{np}));");
         let _ = writeln!(s, "  end");
         let _ = writeln!(s, "end");
+        if let Some(c) = continuous {
+            let _ =
+                writeln!(s, "% continuous-time equivalent ({}): Gc(s) = exp(-input_delay s) numc(s)/denc(s)", c.method);
+            let _ = writeln!(s, "numc = [{}];", row(&c.num));
+            let _ = writeln!(s, "denc = [{}];", row(&c.den));
+            let _ =
+                writeln!(s, "input_delay = {}; % seconds, {} samples", matlab_number(c.input_delay), c.delay_samples);
+            let _ = writeln!(s, "if exist('OCTAVE_VERSION', 'builtin')");
+            let _ = writeln!(s, "  Gc = tf(numc, denc); % Octave's tf has no dead time");
+            let _ = writeln!(s, "else");
+            let _ = writeln!(s, "  Gc = tf(numc, denc, 'InputDelay', input_delay);");
+            let _ = writeln!(s, "end");
+        }
         s
     }
 
@@ -176,6 +212,12 @@ impl ModelOut {
     /// (with the delay's leading zeros), `F` (with its leading 1), `offset` (NaN: none), `u0`
     /// and `covariance` (empty when not known).
     pub fn write_mat(&self, path: &Path) -> Result<()> {
+        self.write_mat_with(path, None)
+    }
+
+    /// [`Self::write_mat`] with the continuous equivalent as `numc`, `denc` (descending powers
+    /// of s) and `input_delay` (seconds).
+    pub fn write_mat_with(&self, path: &Path, continuous: Option<&ContinuousModel>) -> Result<()> {
         use matrw::{MatFile, MatVariable, MatlabType, NumericArray};
         let (num, den) = self.num_den();
         let array = |dim: Vec<usize>, v: Vec<f64>| -> Result<MatVariable> {
@@ -205,6 +247,11 @@ impl ModelOut {
             _ => array(vec![0, 0], Vec::new())?,
         };
         mat.insert("covariance", cov);
+        if let Some(c) = continuous {
+            mat.insert("numc", row(&c.num)?);
+            mat.insert("denc", row(&c.den)?);
+            mat.insert("input_delay", scalar(c.input_delay)?);
+        }
         // matrw writes to a path: a temporary sibling renamed into place, as every result file.
         let tmp = super::temporary_path(path)?;
         let tmp_str = tmp.to_str().ok_or_else(|| Error::output(path, "the path is not UTF-8"))?;
@@ -234,6 +281,8 @@ struct Doc<'a> {
     parameters: &'a [String],
     covariance: Option<Vec<Vec<f64>>>,
     noise_variance: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    continuous: Option<&'a ContinuousModel>,
 }
 
 /// What [`ModelOut::from_json_text`] reads of a [`Doc`].
