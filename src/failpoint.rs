@@ -167,9 +167,13 @@ pub fn before_checkpoint_removal() {
 /// [`crate::kernels::flavour`]).
 pub fn generic_kernels() -> bool {
     #[cfg(feature = "failpoints")]
-    return matches!(hooks::hook(), Some(hooks::Hook::GenericKernels));
+    {
+        matches!(hooks::hook(), Some(hooks::Hook::GenericKernels))
+    }
     #[cfg(not(feature = "failpoints"))]
-    false
+    {
+        false
+    }
 }
 
 /// Called by the checkpoint writer once its `n`-th part of this run (1-based) is durable.
