@@ -18,12 +18,14 @@
 //!   rows were saved;
 //! - `pause_merge:MARKER`: a whole run, once its result files are written and before it
 //!   deletes the checkpoint, creates MARKER and waits until MARKER is deleted: a kill there
-//!   leaves complete results beside a complete checkpoint.
+//!   leaves complete results beside a complete checkpoint;
+//! - `kernels:generic`: the process runs the baseline kernels on a CPU with AVX2 and FMA, as a
+//!   node of another CPU family would ([`crate::kernels::Flavour`]; tests/kernel_flavour.rs).
 //!
 //! A pause also ends when the process receives SIGINT or SIGTERM: its own handler is
-//! registered after the run's [`crate::checkpoint::StopOnSignal`], so by the time a pause sees
-//! the signal the run's stop flag is set too, and a test can interrupt a paused run and know
-//! that no further cell starts.
+//! registered after the command armed [`crate::checkpoint::StopOnSignal`] and calls that one
+//! first, so by the time a pause sees the signal the run's stop flag is set too, and a test can
+//! interrupt a paused run and know that no further cell starts.
 //!
 //! The pauses are what make the kill/resume tests deterministic: a test waits for the marker
 //! (a state), not for a time.
@@ -40,6 +42,7 @@ mod hooks {
         PauseCell((usize, usize, usize), PathBuf),
         PausePart(u64, PathBuf),
         PauseMerge(PathBuf),
+        GenericKernels,
     }
 
     fn cell(s: &str) -> Option<(usize, usize, usize)> {
@@ -57,6 +60,7 @@ mod hooks {
                 Some(Hook::PauseCell(cell(c)?, PathBuf::from(marker)))
             }
             "pause_merge" => Some(Hook::PauseMerge(PathBuf::from(rest))),
+            "kernels" if rest == "generic" => Some(Hook::GenericKernels),
             "pause_part" => {
                 let (n, marker) = rest.split_once(':')?;
                 Some(Hook::PausePart(n.trim().parse().ok()?, PathBuf::from(marker)))
@@ -159,6 +163,19 @@ pub fn before_checkpoint_removal() {
     }
 }
 
+/// True when the process must run the baseline kernels whatever its CPU (asked once, by
+/// [`crate::kernels::flavour`]).
+pub fn generic_kernels() -> bool {
+    #[cfg(feature = "failpoints")]
+    {
+        matches!(hooks::hook(), Some(hooks::Hook::GenericKernels))
+    }
+    #[cfg(not(feature = "failpoints"))]
+    {
+        false
+    }
+}
+
 /// Called by the checkpoint writer once its `n`-th part of this run (1-based) is durable.
 #[inline]
 pub fn after_part(n: u64) {
@@ -183,7 +200,8 @@ mod tests {
         assert_eq!(parse("pause_cell:5, 4,0:/tmp/a:b"), Some(Hook::PauseCell((5, 4, 0), PathBuf::from("/tmp/a:b"))));
         assert_eq!(parse("pause_part:1:/tmp/m"), Some(Hook::PausePart(1, PathBuf::from("/tmp/m"))));
         assert_eq!(parse("pause_merge:/tmp/m"), Some(Hook::PauseMerge(PathBuf::from("/tmp/m"))));
-        for bad in ["panic:2,2", "panic:2,2,1,4", "pause_part:x:/m", "pause_cell:1,1,1", "stop:1", ""] {
+        assert_eq!(parse("kernels:generic"), Some(Hook::GenericKernels));
+        for bad in ["kernels:avx2", "panic:2,2", "panic:2,2,1,4", "pause_part:x:/m", "pause_cell:1,1,1", "stop:1", ""] {
             assert_eq!(parse(bad), None, "{bad}");
         }
     }

@@ -31,14 +31,3 @@ pub mod table;
 pub mod text;
 
 pub use error::{Error, Result};
-
-/// Makes faer's dense routines (the ARX/IV regressions of the initial guess, the eigenvalue
-/// fallback of the pole finder) run sequentially. oesweep parallelises across cells, one
-/// rayon worker per cell; faer's default (all of rayon's threads) nested inside a worker only
-/// added scheduling: 18 % of the L2 phase went to the initial guesses, much of it in thread
-/// hand-offs, and a thread-count-dependent split of a product would put the table's
-/// independence of `--threads` at risk. Called before each such routine; idempotent.
-pub(crate) fn faer_sequential() {
-    static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| faer::set_global_parallelism(faer::Par::Seq));
-}

@@ -141,7 +141,6 @@ pub fn poles(f: &[f64]) -> Vec<(f64, f64)> {
 
 /// Eigenvalues of the companion matrix of `z^n + f_1 z^{n-1} + ... + f_n`; empty on failure.
 fn companion_eigenvalues(f: &[f64]) -> Vec<(f64, f64)> {
-    crate::faer_sequential();
     let n = f.len();
     let c = Mat::<f64>::from_fn(n, n, |i, j| {
         if i == 0 {

@@ -1,11 +1,12 @@
 //! Running a plan: rayon workers estimate the cells; the module that knows about the worker pool.
 //!
-//! Two stages. (1) The least-squares phase (initial guesses, L2 fits, sigma) of every order
-//! pair, in parallel over pairs, largest first. (2) The Huber cells, as the plan's start
-//! strategy says: `chains` (the default) walks each pair's k values in increasing order
-//! ([`estimate::chains::walk_pair`]) and runs in parallel over pairs; `ls` makes every cell
-//! independent and runs in parallel over cells; `neighbour`/`best` walk each pair from the
-//! largest k down, in parallel over pairs. Each task is sequential and deterministic, so the
+//! Two stages ([`run_in_pool`]). (1) The least-squares phase (initial guesses, L2 fits, sigma)
+//! of every order pair, in parallel over pairs, largest first (`Sweep::least_squares_phase`).
+//! (2) The Huber cells, as the plan's start strategy says: `chains` (the default) walks each
+//! pair's k values in increasing order ([`estimate::chains::walk_pair`]) and runs in parallel
+//! over pairs (`Sweep::k_chains`); `ls` makes every cell independent and runs in parallel over
+//! cells (`Sweep::independent_cells`); `neighbour`/`best` walk each pair from the largest k
+//! down, in parallel over pairs (`Sweep::neighbour_chains`). Each task is sequential and deterministic, so the
 //! table does not depend on the thread count. One [`Workspace`] per worker ([`Workspaces`]). A
 //! panic inside a fit is caught and becomes a failed row; the sweep goes on.
 //!
@@ -198,36 +199,111 @@ fn chain_theta(ctx: &Context, row: &CellRow) -> Option<Vec<f64>> {
     row.ok().then(|| ctx.theta(row))
 }
 
-fn run_in_pool(
-    plan: &Plan,
-    ctx: &Context,
-    progress: &Progress,
-    done: &HashMap<RowKey, CellRow>,
-    on_row: &(dyn Fn(&CellRow) + Sync),
-    stop: &AtomicBool,
+/// Per plan pair, what its least-squares phase gave (None: stopped before it) and whether its
+/// `ls` row was computed in this run (else an earlier run's row was taken).
+type LsPhase = Vec<Option<(PairLs, bool)>>;
+
+/// One sweep's plan, context and bookkeeping, shared by its steps.
+struct Sweep<'s> {
+    plan: &'s Plan,
+    ctx: &'s Context<'s>,
+    judge: Judge<'s>,
+    workspaces: Workspaces,
+    progress: &'s Progress,
+    /// Rows of earlier runs.
+    done: &'s HashMap<RowKey, CellRow>,
+    on_row: &'s (dyn Fn(&CellRow) + Sync),
+    stop: &'s AtomicBool,
+}
+
+/// The sweep in the pool: the least-squares phase of every pair, then the Huber cells as the
+/// start strategy says. Returns the rows computed in this run.
+fn run_in_pool<'s>(
+    plan: &'s Plan,
+    ctx: &'s Context<'s>,
+    progress: &'s Progress,
+    done: &'s HashMap<RowKey, CellRow>,
+    on_row: &'s (dyn Fn(&CellRow) + Sync),
+    stop: &'s AtomicBool,
 ) -> Vec<CellRow> {
-    let judge = ctx.judge();
-    let workspaces = Workspaces::new(ctx);
-    let stopped = || stop.load(Ordering::Relaxed);
-    let huber_key = |cell: Cell| RowKey::huber(&plan.pairs[cell.pair], cell.k_index);
+    let sweep = Sweep { plan, ctx, judge: ctx.judge(), workspaces: Workspaces::new(ctx), progress, done, on_row, stop };
     progress.message("least-squares phase");
-    // The least-squares phase of one pair of `plan.ls_pairs()` (index `p`; beyond the plan's
-    // own pairs, a sub-model kept for its nested start only, which gives no row) from the
-    // `nested` starts: (the pair's fit, whether it is a row computed in this run); None:
-    // stopped before it.
-    let own = plan.pairs.len();
-    let pair_ls = |pair: &crate::plan::Structure, p: usize, nested: &[Vec<f64>], ws: &mut Workspace| {
+    let ls = sweep.least_squares_phase();
+    progress.message("Huber phase");
+    let huber_rows = match plan.start {
+        StartStrategy::Ls => sweep.independent_cells(&ls),
+        StartStrategy::Chains => sweep.k_chains(&ls),
+        StartStrategy::Neighbour | StartStrategy::Best => sweep.neighbour_chains(&ls),
+    };
+    let mut rows: Vec<CellRow> = ls.into_iter().flatten().filter(|(_, fresh)| *fresh).map(|(p, _)| p.row).collect();
+    rows.extend(huber_rows);
+    rows
+}
+
+impl Sweep<'_> {
+    fn stopped(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+
+    fn huber_key(&self, cell: Cell) -> RowKey {
+        RowKey::huber(&self.plan.pairs[cell.pair], cell.k_index)
+    }
+
+    /// The least-squares phase of every pair, in waves of equal nB + nF, so that a pair's
+    /// sub-models are fitted before it (nested starts, METHOD.md 5.2, step 2); the pairs of a
+    /// wave in parallel, one task each. The nested starts are read from the sub-models' rows,
+    /// as a resumed run reads them, so both give the same bits.
+    fn least_squares_phase(&self) -> LsPhase {
+        let ls_pairs = self.plan.ls_pairs();
+        let subs = self.plan.ls_sub_models();
+        let mut ls: LsPhase = (0..ls_pairs.len()).map(|_| None).collect();
+        for wave in self.plan.ls_waves() {
+            let fitted: Vec<(usize, Option<(PairLs, bool)>)> = wave
+                .par_iter()
+                .with_max_len(1)
+                .map(|&p| {
+                    self.workspaces.with(|ws| {
+                        let pair = &ls_pairs[p];
+                        let prob = self.ctx.problem(pair);
+                        let subs: &[usize] = if self.ctx.solver.nested_starts { &subs[p] } else { &[] };
+                        let nested: Vec<Vec<f64>> = subs
+                            .iter()
+                            .filter_map(|&s| {
+                                let (sub, _) = ls[s].as_ref()?;
+                                let (_, theta) = sub.start.as_ref()?;
+                                Some(estimate::embed(theta, ls_pairs[s].nb, ls_pairs[s].nf, &prob))
+                            })
+                            .collect();
+                        (p, self.pair_ls(pair, p, &nested, ws))
+                    })
+                })
+                .collect();
+            for (p, fit) in fitted {
+                ls[p] = fit;
+            }
+        }
+        ls.truncate(self.plan.pairs.len());
+        ls
+    }
+
+    /// The least-squares phase of one pair of `plan.ls_pairs()` (index `p`; beyond the plan's
+    /// own pairs, a sub-model kept for its nested start only, which gives no row) from the
+    /// `nested` starts: (the pair's fit, whether it is a row computed in this run); None:
+    /// stopped before it.
+    fn pair_ls(&self, pair: &Structure, p: usize, nested: &[Vec<f64>], ws: &mut Workspace) -> Option<(PairLs, bool)> {
+        let (plan, ctx) = (self.plan, self.ctx);
+        let own = plan.pairs.len();
         // Without nested starts no pair needs another's fit.
         if p >= own && !ctx.solver.nested_starts {
             return None;
         }
-        let resumed = if p < own { done.get(&RowKey::ls(pair)) } else { None };
-        let all_done =
-            p < own && (0..plan.ks.len()).all(|k| done.contains_key(&huber_key(Cell { pair: p, k_index: k })));
+        let resumed = if p < own { self.done.get(&RowKey::ls(pair)) } else { None };
+        let all_done = p < own
+            && (0..plan.ks.len()).all(|k| self.done.contains_key(&self.huber_key(Cell { pair: p, k_index: k })));
         if let (Some(row), true) = (resumed, all_done) {
             return Some((PairLs::from_row(ctx, row.clone(), Vec::new()), false));
         }
-        if stopped() {
+        if self.stopped() {
             return None;
         }
         let prob = ctx.problem(pair);
@@ -236,7 +312,8 @@ fn run_in_pool(
         ws.role = Role::LeastSquares;
         // A resumed pair with cells left is fitted again for its extra Huber starts: the
         // least-squares phase is deterministic, so this reproduces the interrupted run.
-        let fit = catch_unwind(AssertUnwindSafe(|| estimate::fit_ls_nested(&prob, &judge, &ctx.solver, nested, ws)));
+        let fit =
+            catch_unwind(AssertUnwindSafe(|| estimate::fit_ls_nested(&prob, &self.judge, &ctx.solver, nested, ws)));
         let (row, alternatives) = match fit {
             Ok(fit) => (ctx.with_offset(CellRow::from_ls(&fit, t.elapsed().as_secs_f64())), fit.alternatives),
             Err(e) => {
@@ -248,121 +325,94 @@ fn run_in_pool(
             return Some((PairLs::from_row(ctx, row.clone(), alternatives), false));
         }
         if p < own {
-            on_row(&row);
+            (self.on_row)(&row);
         }
         Some((PairLs::from_row(ctx, row, alternatives), p < own))
-    };
-    // In waves of equal nB + nF, so that a pair's sub-models are fitted before it (nested
-    // starts, METHOD.md 5.2, step 2); the pairs of a wave in parallel, one task each. The
-    // nested starts are read from the sub-models' rows, as a resumed run reads them, so both
-    // give the same bits.
-    let ls_pairs = plan.ls_pairs();
-    let subs = plan.ls_sub_models();
-    let mut ls: Vec<Option<(PairLs, bool)>> = (0..ls_pairs.len()).map(|_| None).collect();
-    for wave in plan.ls_waves() {
-        let fitted: Vec<(usize, Option<(PairLs, bool)>)> = wave
-            .par_iter()
-            .with_max_len(1)
-            .map(|&p| {
-                workspaces.with(|ws| {
-                    let pair = &ls_pairs[p];
-                    let prob = ctx.problem(pair);
-                    let subs: &[usize] = if ctx.solver.nested_starts { &subs[p] } else { &[] };
-                    let nested: Vec<Vec<f64>> = subs
-                        .iter()
-                        .filter_map(|&s| {
-                            let (sub, _) = ls[s].as_ref()?;
-                            let (_, theta) = sub.start.as_ref()?;
-                            Some(estimate::embed(theta, ls_pairs[s].nb, ls_pairs[s].nf, &prob))
-                        })
-                        .collect();
-                    (p, pair_ls(pair, p, &nested, ws))
-                })
-            })
-            .collect();
-        for (p, fit) in fitted {
-            ls[p] = fit;
-        }
     }
-    ls.truncate(own);
-    let by_cost = plan.pairs_by_cost();
-    progress.message("Huber phase");
 
-    let huber_rows: Vec<CellRow> = match plan.start {
-        StartStrategy::Ls => plan
+    /// Start strategy `ls`: every Huber cell on its own from its pair's least-squares fit, in
+    /// parallel over cells.
+    fn independent_cells(&self, ls: &LsPhase) -> Vec<CellRow> {
+        self.plan
             .cells()
             .par_iter()
             .map(|&cell| {
-                workspaces.with(|ws| {
-                    if done.contains_key(&huber_key(cell)) || stopped() {
+                self.workspaces.with(|ws| {
+                    if self.done.contains_key(&self.huber_key(cell)) || self.stopped() {
                         return None;
                     }
                     // A pair without a fit here was skipped because of a stop.
                     let (pair_ls, _) = ls[cell.pair].as_ref()?;
-                    let row = huber_cell(plan, ctx, &judge, pair_ls, cell, None, ws);
-                    on_row(&row);
-                    progress.inc(1);
+                    let row = huber_cell(self.plan, self.ctx, &self.judge, pair_ls, cell, None, ws);
+                    (self.on_row)(&row);
+                    self.progress.inc(1);
                     Some(row)
                 })
             })
             .flatten()
-            .collect(),
-        StartStrategy::Chains => {
-            let order = plan.k_ascending();
-            by_cost
-                .par_iter()
-                .with_max_len(1)
-                .map(|&p| {
-                    workspaces.with(|ws| {
-                        let Some((pair_ls, _)) = &ls[p] else { return Vec::new() };
-                        let keys: Vec<bool> = order
-                            .iter()
-                            .map(|&ki| done.contains_key(&huber_key(Cell { pair: p, k_index: ki })))
-                            .collect();
-                        if keys.iter().all(|&d| d) {
-                            return Vec::new();
-                        }
-                        chain_cells(plan, ctx, &judge, pair_ls, p, &order, &keys, ws, &stopped, on_row, progress)
-                    })
+            .collect()
+    }
+
+    /// Start strategy `chains`: each pair's k values walked in increasing order
+    /// ([`chain_cells`]), in parallel over pairs, the costliest first.
+    fn k_chains(&self, ls: &LsPhase) -> Vec<CellRow> {
+        let order = self.plan.k_ascending();
+        self.plan
+            .pairs_by_cost()
+            .par_iter()
+            .with_max_len(1)
+            .map(|&p| {
+                self.workspaces.with(|ws| {
+                    let Some((pair_ls, _)) = &ls[p] else { return Vec::new() };
+                    let keys: Vec<bool> = order
+                        .iter()
+                        .map(|&ki| self.done.contains_key(&self.huber_key(Cell { pair: p, k_index: ki })))
+                        .collect();
+                    if keys.iter().all(|&d| d) {
+                        return Vec::new();
+                    }
+                    let (plan, ctx, judge) = (self.plan, self.ctx, &self.judge);
+                    let stopped = || self.stopped();
+                    chain_cells(plan, ctx, judge, pair_ls, p, &order, &keys, ws, &stopped, self.on_row, self.progress)
                 })
-                .flatten()
-                .collect()
-        }
-        StartStrategy::Neighbour | StartStrategy::Best => {
-            let chain = plan.k_descending();
-            (0..plan.pairs.len())
-                .into_par_iter()
-                .map(|p| {
-                    workspaces.with(|ws| {
-                        let mut out = Vec::new();
-                        let Some((pair_ls, _)) = &ls[p] else { return out };
-                        let mut prev: Option<Vec<f64>> = None;
-                        for &ki in &chain {
-                            let cell = Cell { pair: p, k_index: ki };
-                            let row = match done.get(&huber_key(cell)) {
-                                Some(row) => {
-                                    prev = chain_theta(ctx, row).or(prev);
-                                    continue;
-                                }
-                                None if stopped() => break,
-                                None => huber_cell(plan, ctx, &judge, pair_ls, cell, prev.as_deref(), ws),
-                            };
-                            // From the row, like a resumed chain: one path, the same bits.
-                            prev = chain_theta(ctx, &row).or(prev);
-                            on_row(&row);
-                            progress.inc(1);
-                            out.push(row);
-                        }
-                        out
-                    })
+            })
+            .flatten()
+            .collect()
+    }
+
+    /// Start strategies `neighbour` and `best`: each pair walked from the largest k down, a
+    /// cell starting from the previous cell's solution, in parallel over pairs.
+    fn neighbour_chains(&self, ls: &LsPhase) -> Vec<CellRow> {
+        let chain = self.plan.k_descending();
+        (0..self.plan.pairs.len())
+            .into_par_iter()
+            .map(|p| {
+                self.workspaces.with(|ws| {
+                    let mut out = Vec::new();
+                    let Some((pair_ls, _)) = &ls[p] else { return out };
+                    let mut prev: Option<Vec<f64>> = None;
+                    for &ki in &chain {
+                        let cell = Cell { pair: p, k_index: ki };
+                        let row = match self.done.get(&self.huber_key(cell)) {
+                            Some(row) => {
+                                prev = chain_theta(self.ctx, row).or(prev);
+                                continue;
+                            }
+                            None if self.stopped() => break,
+                            None => huber_cell(self.plan, self.ctx, &self.judge, pair_ls, cell, prev.as_deref(), ws),
+                        };
+                        // From the row, like a resumed chain: one path, the same bits.
+                        prev = chain_theta(self.ctx, &row).or(prev);
+                        (self.on_row)(&row);
+                        self.progress.inc(1);
+                        out.push(row);
+                    }
+                    out
                 })
-                .flatten()
-                .collect()
-        }
-    };
-    let mut rows: Vec<CellRow> = ls.into_iter().flatten().filter(|(_, fresh)| *fresh).map(|(p, _)| p.row).collect();
-    rows.extend(huber_rows);
-    rows
+            })
+            .flatten()
+            .collect()
+    }
 }
 
 /// The Huber cells of pair `p` under the `chains` strategy, in increasing k (`order`), those

@@ -61,6 +61,9 @@ pub struct Manifest {
     /// The normalised job without its paths (`output`, `data.path`, `validation.path`).
     pub job: Value,
     pub data: Vec<DataHash>,
+    /// The kernels that computed the rows ([`crate::kernels::Flavour::name`]): the flavours
+    /// round differently, so one table takes rows of one.
+    pub kernels: String,
 }
 
 impl Manifest {
@@ -81,7 +84,14 @@ impl Manifest {
                 sha256: sha256_hex(&bytes),
             });
         }
-        Ok(Manifest { format: FORMAT, oesweep_version: env!("CARGO_PKG_VERSION").to_string(), job_sha256, job, data })
+        Ok(Manifest {
+            format: FORMAT,
+            oesweep_version: env!("CARGO_PKG_VERSION").to_string(),
+            job_sha256,
+            job,
+            data,
+            kernels: crate::kernels::flavour().name().to_string(),
+        })
     }
 
     /// What differs between the manifest of the parts (`self`) and the current one, in words;
@@ -121,6 +131,19 @@ impl Manifest {
             }
         }
         None
+    }
+
+    /// Why the rows of the parts (`self`) cannot join those of `now` because other kernels
+    /// computed them; None when the same did.
+    pub fn kernel_mix(&self, now: &Manifest) -> Option<String> {
+        (self.kernels != now.kernels).then(|| {
+            format!(
+                "its rows were computed with the {} kernels, the others of this table with the {} kernels; \
+                 the two round differently in the last bits and a table takes rows of one kind only \
+                 (compute all cells on CPUs of one kind)",
+                self.kernels, now.kernels
+            )
+        })
     }
 }
 

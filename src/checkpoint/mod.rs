@@ -48,7 +48,10 @@
 //! output folder is where the parts are, and the data files are identified by their contents,
 //! so a moved project folder still resumes while a changed data file does not. A resume whose
 //! manifest differs is refused with one line naming the first difference (a job field, a data
-//! file, the program version); `--force` deletes the parts and starts over.
+//! file, the program version); `--force` deletes the parts and starts over. It also names
+//! the kernels that computed the rows ([`crate::kernels::Flavour`]): the AVX2+FMA and the
+//! generic build round differently, so a resume or a merge that would put rows of both into
+//! one table is refused with one line naming the two.
 //!
 //! **The end.** The rows read from the parts at the start plus the rows of this run (the
 //! sweep keeps them in memory too; this run's parts hold the same rows) are sorted into
@@ -56,9 +59,10 @@
 //! by renaming it away first ([`remove`]): a crash before that rename leaves a checkpoint in
 //! which every cell is done, and the next run just merges again.
 //!
-//! **Signals.** [`StopOnSignal`] turns SIGINT/SIGTERM into a flag the sweep's workers check
-//! before each cell; a second signal exits at once with code 130 (the parts on disk are
-//! complete either way).
+//! **Signals.** [`StopOnSignal`], armed by the command line around its run (never by the
+//! library), turns SIGINT/SIGTERM into the stop flag the sweep's workers check before each
+//! cell; a second signal exits at once with code 130 (the parts on disk are complete either
+//! way). Dropped, it puts back the dispositions it found.
 //!
 //! Files: [`manifest`] (what a checkpoint belongs to), [`read`] (inspecting and gathering
 //! parts), [`writer`] (the writer thread), [`folder`] (folders, names, deletion), [`signal`]

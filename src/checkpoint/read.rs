@@ -76,6 +76,9 @@ pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
         std::fs::read_to_string(&manifest_path).map_err(|e| refuse(&manifest_path, format!("cannot read: {e}")))?;
     let stored: Manifest =
         serde_json::from_str(&text).map_err(|e| refuse(&manifest_path, format!("not a checkpoint manifest: {e}")))?;
+    if let Some(why) = stored.kernel_mix(now) {
+        return Err(refuse(parts, why));
+    }
     if let Some(what) = stored.difference(now) {
         return Err(refuse(parts, format!("holds an interrupted run of a different job: {what}")));
     }

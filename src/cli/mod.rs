@@ -21,6 +21,15 @@ use print::{
 /// and map it to the exit code (0 success, 1 failure of the work itself, 2 bad input).
 pub fn main() -> std::process::ExitCode {
     use clap::Parser;
+    // A bad data file is one line of error, not also a panic message: the library catches a
+    // reader's panic and makes it an input error, and the command (which owns its process,
+    // unlike the library) leaves that panic unprinted.
+    let print = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !crate::data::reading_data() {
+            print(info);
+        }
+    }));
     match run(Cli::parse()) {
         Ok(code) => std::process::ExitCode::from(code),
         Err(e) => {
@@ -224,6 +233,7 @@ fn run_job(a: &RunArgs) -> Result<u8> {
             )));
         }
     }
+    let watch = engine::Watch::default();
     let opts = RunOptions {
         threads: a.threads,
         quiet: a.quiet,
@@ -231,7 +241,7 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         checkpoint_every: a.checkpoint_every,
         shard: a.shard,
         report: a.report,
-        watch: None,
+        watch: Some(watch.clone()),
         profile: a.profile.is_some(),
     };
     // The data's warnings are printed when the records are read; the picks' at the end.
@@ -260,7 +270,12 @@ fn run_job(a: &RunArgs) -> Result<u8> {
             );
         }
     };
-    let o = engine::run(&a.job, &opts, &on_resume)?;
+    // Ctrl-C/SIGTERM stop this run (a second one exits), and do what they did before once it
+    // returns.
+    let signals = crate::checkpoint::StopOnSignal::arm(watch.stop.clone());
+    let o = engine::run(&a.job, &opts, &on_resume);
+    drop(signals);
+    let o = o?;
     if let Some((n, e)) = &o.unsaved {
         eprintln!("warning: {n} finished rows could not be saved to the checkpoint: {e}");
     }

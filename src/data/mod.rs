@@ -28,10 +28,9 @@ mod text;
 
 pub use levels::{Levels, Offset};
 
+use std::cell::Cell;
 use std::panic::{self, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
-use std::sync::Once;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use serde::{Deserialize, Serialize};
 
@@ -395,29 +394,28 @@ fn constant_value(x: &[f64]) -> Option<f64> {
     (hi - lo <= 1e-12 * mean.abs().max(1.0)).then_some(mean)
 }
 
-/// Panics of the reader while `guarded` runs are caught and not printed.
-static QUIET: AtomicUsize = AtomicUsize::new(0);
-static HOOK: Once = Once::new();
+thread_local! {
+    /// Depth of [`guarded`] calls on this thread.
+    static READING: Cell<usize> = const { Cell::new(0) };
+}
+
+/// True while this thread runs a data reader inside [`guarded`], whose panic becomes an input
+/// error. For a program's own panic hook (the command line's) that wants to leave such panics
+/// unprinted; the library installs no hook.
+pub fn reading_data() -> bool {
+    READING.with(|r| r.get() > 0)
+}
 
 /// Runs `read` and turns a panic into an input error. The Parquet decoder (and the MAT parser)
-/// trusts the
-/// file's metadata and panics on some corrupt files (an `unwrap` on a missing statistic,
-/// found by mutating a valid file), and a bad file must be exit 2 and one line, not a
-/// panic with a backtrace. The panic hook is wrapped once so it stays silent while any
-/// guarded read runs (any thread: the decoder may panic on a pool thread); other panics
-/// are still reported by the previous hook.
+/// trusts the file's metadata and panics on some corrupt files (an `unwrap` on a missing
+/// statistic, found by mutating a valid file), and a bad file must be an input error, not a
+/// crash. Caught here, on the calling thread (the readers decode there: see
+/// `parquet::read_columns`); whether the panic message is printed is the process's panic
+/// hook's business ([`reading_data`]).
 fn guarded<T>(path: &Path, format: &str, read: impl FnOnce() -> Result<T>) -> Result<T> {
-    HOOK.call_once(|| {
-        let previous = panic::take_hook();
-        panic::set_hook(Box::new(move |info| {
-            if QUIET.load(Ordering::SeqCst) == 0 {
-                previous(info);
-            }
-        }));
-    });
-    QUIET.fetch_add(1, Ordering::SeqCst);
+    READING.with(|r| r.set(r.get() + 1));
     let outcome = panic::catch_unwind(AssertUnwindSafe(read));
-    QUIET.fetch_sub(1, Ordering::SeqCst);
+    READING.with(|r| r.set(r.get() - 1));
     outcome.unwrap_or_else(|payload| {
         let what = payload
             .downcast_ref::<&str>()

@@ -4,7 +4,7 @@
 use std::fs::File;
 use std::path::Path;
 
-use polars::prelude::{DataType, ParquetReader, SerReader};
+use polars::prelude::{DataType, ParallelStrategy, ParquetReader, SerReader};
 
 use super::{ColumnRef, Columns, check_finite, input_error, resolve_columns, row_range};
 use crate::error::Result;
@@ -37,8 +37,11 @@ pub(super) fn read_columns(path: &Path, cols: &[ColumnRef], rows: Option<[usize;
             unique.push(n.clone());
         }
     }
+    // On this thread, not polars' pool: a panic of the decoder is then caught by `guarded`
+    // on the thread that knows it is reading (two columns gain nothing from a pool anyway).
     let df = reader
         .with_columns(Some(unique))
+        .read_parallel(ParallelStrategy::None)
         .finish()
         .map_err(|e| input_error(path, format!("cannot read Parquet data: {e}")))?;
     let range = row_range(path, rows, df.height())?;

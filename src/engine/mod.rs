@@ -6,12 +6,16 @@
 //! A run is: validate the job and its data ([`prepare`]) -> lock the output folder
 //! ([`crate::lock`]) -> read the checkpoint of an interrupted run ([`crate::checkpoint`]) ->
 //! sweep the cells left, each finished row going to the checkpoint writer ([`crate::sweep`]) ->
-//! on a stop signal, return (resumable) -> otherwise reduce to the picks ([`crate::reduce`]),
-//! write the result files ([`crate::export`]), delete the checkpoint, and optionally the report
-//! ([`crate::report`]). A shard (`--shard I/N`) runs its share of the plan ([`crate::shard`])
-//! and stops once its rows are saved; [`merge`] combines the shards.
+//! once stopped ([`Watch::stop`]), return (resumable) -> otherwise reduce to the picks
+//! ([`crate::reduce`]), write the result files ([`crate::export`]), delete the checkpoint, and
+//! optionally the report ([`crate::report`]). A shard (`--shard I/N`) runs its share of the
+//! plan ([`crate::shard`]) and stops once its rows are saved; [`merge`] combines the shards.
+//!
+//! Nothing here changes the host process: no signal handler, no panic hook, no process-wide
+//! setting of a dependency. The caller stops a run through [`Watch::stop`]; the command line
+//! arms SIGINT/SIGTERM for that ([`crate::checkpoint::StopOnSignal`]) around its own run.
 
-use crate::checkpoint::{self, Manifest, StopOnSignal, Writer};
+use crate::checkpoint::{self, Manifest, Writer};
 
 use crate::error::{Error, Result};
 use crate::estimate;
@@ -114,17 +118,16 @@ pub struct RunOptions {
     pub shard: Option<Shard>,
     /// Also write the HTML report (whole runs only).
     pub report: bool,
-    /// A caller that watches the run itself (an embedding program such as the Python
-    /// package): no signal handlers are installed, the caller stops the run through
-    /// [`Watch::stop`] and reads the progress from [`Watch::done`]. None: SIGINT/SIGTERM stop it.
+    /// A caller that watches the run: it stops the run through [`Watch::stop`] (the command
+    /// line arms SIGINT/SIGTERM to set it, the Python package its `KeyboardInterrupt`) and
+    /// reads the progress from [`Watch::done`]. None: the run goes to the end. The library
+    /// installs no signal handler either way.
     pub watch: Option<Watch>,
     /// Count solver iterations by role and time by phase ([`RunOutcome::profile`]).
     pub profile: bool,
 }
 
 /// The progress and stop switch of a run shared with the caller ([`RunOptions::watch`]).
-/// A process that has its own SIGINT handling (Python's `KeyboardInterrupt`) must not have it
-/// replaced by the run's handlers, which after the run would turn every Ctrl-C into an exit.
 #[derive(Clone, Debug, Default)]
 pub struct Watch {
     /// Set by the caller: the workers hand out no more cells, the run returns
@@ -189,7 +192,7 @@ pub struct Resumed {
 /// How a run ended.
 #[derive(Debug)]
 pub enum RunEnd {
-    /// Stopped by SIGINT/SIGTERM: the finished rows are in the checkpoint, nothing merged.
+    /// Stopped through [`Watch::stop`]: the finished rows are in the checkpoint, nothing merged.
     Interrupted,
     /// A shard whose rows are all saved in its checkpoint folder, for [`merge`].
     ShardSaved,
@@ -301,14 +304,8 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
         w.done.store(resumed_huber, Ordering::Relaxed);
     }
     let outcome = {
-        let signals;
-        let stop: &AtomicBool = match &opts.watch {
-            Some(w) => &w.stop,
-            None => {
-                signals = StopOnSignal::install();
-                signals.flag()
-            }
-        };
+        let never = AtomicBool::new(false);
+        let stop: &AtomicBool = opts.watch.as_ref().map_or(&never, |w| &w.stop);
         let tx = writer.sender();
         // A send fails only if the writer thread is gone; the row is still in the outcome.
         let on_row = |row: &CellRow| {

@@ -116,7 +116,6 @@ pub fn run(prob: &Problem, theta: &[f64], k: Option<f64>, settings: &Settings, o
     let n = prob.n();
     let block = if settings.block > 0 { settings.block } else { ((n as f64).cbrt().round() as usize).max(1) };
     let judge = Judge { criterion_only: true, ..Judge::default() };
-    crate::faer_sequential();
     let replicates: Vec<Option<(Vec<f64>, bool)>> = (0..settings.replicates)
         .into_par_iter()
         .map_init(Workspace::new, |ws, r| {

@@ -210,7 +210,6 @@ fn covariance_of(
         return None;
     }
     let a = faer::Mat::<f64>::from_fn(d, d, |i, j| h[i * d + j] / (scale[i] * scale[j]));
-    crate::faer_sequential();
     let inv = a.llt(faer::Side::Lower).ok().map(|chol| chol.inverse());
     let inv: Vec<f64> = match inv {
         // A unit-diagonal matrix has max_i inv_ii >= 1/(d lambda_min) and <= 1/lambda_min:
@@ -253,7 +252,6 @@ fn qr_inverse(prob: &Problem, xu: &[f64], xy: &[f64], scale: &[f64], rq: &mut Ve
     // Householder QR: the same O(N d^2) as rotations row by row at a fraction of the time.
     let mut block = faer::Mat::<f64>::zeros(d + QR_ROWS, d);
     let mut r_rows = 0;
-    crate::faer_sequential();
     for start in (0..n).step_by(QR_ROWS) {
         let m = QR_ROWS.min(n - start);
         for i in 0..r_rows {

@@ -89,7 +89,6 @@ fn finite(v: &[f64]) -> bool {
 /// one `min ||R_Phi theta - r_y||`, which column-pivoted QR solves (rank-revealing, as the
 /// whole regression would be).
 pub fn arx(prob: &Problem) -> Option<Vec<f64>> {
-    crate::faer_sequential();
     let d = prob.dim();
     let r = r_factor(prob.n(), d + 1, |t, c| regressor(prob, prob.y, t, c));
     let rows = r.nrows();
@@ -107,7 +106,6 @@ pub fn arx(prob: &Problem) -> Option<Vec<f64>> {
 
 /// One IV pass with instruments simulated from `theta`.
 fn iv_step(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
-    crate::faer_sequential();
     // Instruments from the noise-free output, offset included.
     let x = prob.simulate_vec(theta);
     if !finite(&x) {

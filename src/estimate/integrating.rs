@@ -140,7 +140,6 @@ struct IvFit {
 }
 
 fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
-    crate::faer_sequential();
     let (n, d, nbf) = (prob.n(), prob.dim(), prob.nb + prob.nf);
     let lags = lags(prob);
     let rows = (0..n).filter(|&t| complete(prob, lags, t)).count();

@@ -87,7 +87,6 @@ pub(super) fn independence_p(reu: &[f64], see: f64, n: usize, ruu: &[f64]) -> f6
     let k = m + 1;
     let toeplitz = faer::Mat::<f64>::from_fn(k, k, |i, j| ruu[i.abs_diff(j)] / nf);
     let rhs = faer::Mat::<f64>::from_fn(k, 1, |i, _| reu[i] / nf);
-    crate::faer_sequential();
     let Ok(chol) = toeplitz.llt(faer::Side::Lower) else { return f64::NAN };
     let x = chol.solve(&rhs);
     let zeta = nf * (0..k).map(|i| rhs[(i, 0)] * x[(i, 0)]).sum::<f64>() / sigma2;

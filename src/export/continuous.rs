@@ -282,7 +282,6 @@ fn poly_mul(a: &[f64], b: &[f64]) -> Vec<f64> {
 
 /// Eigenvalues of a real square matrix as (re, im) pairs; None when the solver fails.
 fn eigenvalues(a: &Mat<f64>) -> Option<Vec<(f64, f64)>> {
-    crate::faer_sequential();
     let ev = a.eigenvalues().ok()?;
     let ev: Vec<(f64, f64)> = ev.iter().map(|z| (z.re, z.im)).collect();
     ev.iter().all(|z| z.0.is_finite() && z.1.is_finite()).then_some(ev)
@@ -297,7 +296,6 @@ fn minus_identity(a: &Mat<f64>) -> Mat<f64> {
 }
 
 fn inverse(a: &Mat<f64>) -> Option<Mat<f64>> {
-    crate::faer_sequential();
     let inv = a.partial_piv_lu().inverse();
     (0..inv.nrows()).all(|i| (0..inv.ncols()).all(|j| inv[(i, j)].is_finite())).then_some(inv)
 }

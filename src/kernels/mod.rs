@@ -27,18 +27,51 @@ macro_rules! inv_f_dispatch {
 mod avx2;
 mod generic;
 
-/// True when this CPU runs the AVX2+FMA build. The choice depends only on the CPU, so a given
-/// machine gives the same numbers whatever the thread count.
+/// Which build of the kernels a process runs. The two round differently (a fused multiply-add
+/// rounds once, a multiply and an add twice; four lanes sum in another order), so their tables
+/// differ in the last bits: a checkpoint records its flavour and a resume or merge refuses to
+/// mix two ([`crate::checkpoint::Manifest`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Flavour {
+    /// AVX2 and FMA (x86-64 CPUs since about 2013-2015).
+    Avx2Fma,
+    /// The baseline build: any other CPU.
+    Generic,
+}
+
+impl Flavour {
+    /// The name checkpoints record and messages show.
+    pub fn name(self) -> &'static str {
+        match self {
+            Flavour::Avx2Fma => "avx2-fma",
+            Flavour::Generic => "generic",
+        }
+    }
+}
+
+/// The flavour this process runs: chosen once, by the CPU (or, in the test hooks binary, by
+/// [`crate::failpoint::generic_kernels`]).
+pub fn flavour() -> Flavour {
+    if has_fma() { Flavour::Avx2Fma } else { Flavour::Generic }
+}
+
+/// True when this process runs the AVX2+FMA build. The choice depends only on the CPU, so a
+/// given machine gives the same numbers whatever the thread count.
 #[inline]
 fn has_fma() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    static FMA: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *FMA.get_or_init(|| {
+        #[cfg(target_arch = "x86_64")]
+        {
+            std::is_x86_feature_detected!("avx2")
+                && std::is_x86_feature_detected!("fma")
+                && !crate::failpoint::generic_kernels()
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
+    })
 }
 
 /// One public wrapper per kernel: after the kernel's own checks (`check`), the AVX2+FMA build

@@ -118,7 +118,6 @@ fn predict(theta: &[f64], u: &[f64], y: &[f64], p: usize, t: usize) -> f64 {
 fn robust_arx(u: &[f64], y: &[f64], p: usize) -> Option<(Vec<f64>, f64)> {
     const TUNING: f64 = 1.345;
     const ITERATIONS: usize = 5;
-    crate::faer_sequential();
     let n = y.len();
     let rows = n - p;
     let d = 2 * p + 2;
