@@ -18,9 +18,29 @@ use print::{describe_grid, print_fit_summary, print_layout, print_picks, print_r
 /// The whole command line: parse the arguments, run the command, print an error as one line
 /// and map it to the exit code (0 success, 1 failure of the work itself, 2 bad input).
 pub fn main() -> std::process::ExitCode {
+    std::process::ExitCode::from(main_with_args(std::env::args_os()))
+}
+
+/// [`main`] with the arguments given (the program's name first) rather than the process's:
+/// for a host process that runs the command line in-process (the Python package's `oesweep`
+/// command). Returns the exit code instead of exiting, also for `--help` and usage errors.
+pub fn main_with_args<I, T>(args: I) -> u8
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
     use clap::Parser;
-    match run(Cli::parse()) {
-        Ok(code) => std::process::ExitCode::from(code),
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            // What clap's `exit` does, minus the exit: the message on stdout (help, version)
+            // or stderr (usage errors), and its code.
+            let _ = e.print();
+            return u8::try_from(e.exit_code()).unwrap_or(2);
+        }
+    };
+    match run(cli) {
+        Ok(code) => code,
         Err(e) => {
             // One line, whatever the paths contain: control characters are escaped.
             let msg: String = e
@@ -29,7 +49,7 @@ pub fn main() -> std::process::ExitCode {
                 .map(|c| if c.is_control() { c.escape_default().to_string() } else { c.to_string() })
                 .collect();
             eprintln!("error: {msg}");
-            std::process::ExitCode::from(if e.is_bad_input() { 2 } else { 1 })
+            if e.is_bad_input() { 2 } else { 1 }
         }
     }
 }
