@@ -174,7 +174,7 @@ def test_a_python_thread_runs_while_the_engine_works(tmp_path):
     try:
         o = subprocess.run(
             [sys.executable, "-c", GIL_CHILD, str(tmp_path), (tmp_path / "d.csv").read_text(), json.dumps(job)],
-            capture_output=True, text=True, timeout=600,
+            capture_output=True, text=True, timeout=300,
         )
     except subprocess.TimeoutExpired:
         pytest.fail("a call into the engine held the GIL: the thread feeding its input never ran")
@@ -490,7 +490,7 @@ def test_ctrl_c_stops_the_command_resumably(tmp_path):
     job = job_for(tmp_path, u, y, "stopped")
     job["grid"] = {"nb": [1, 6], "nf": [1, 6], "k": {"from": 0.1, "to": 2.0, "count": 10, "spacing": "log"}}
     (tmp_path / "job.json").write_text(json.dumps(job))
-    args = [BIN, "run", str(tmp_path / "job.json"), "--quiet", "--threads", "1", "--checkpoint-every", "0"]
+    args = [BIN, "run", str(tmp_path / "job.json"), "--quiet", "--threads", "1", "--checkpoint-every", "0.01"]
     p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     parts = tmp_path / "stopped" / "parts"
     # Ctrl-C once the first finished cells are saved (the engine's handler is in place then).
@@ -498,8 +498,8 @@ def test_ctrl_c_stops_the_command_resumably(tmp_path):
         time.sleep(0.01)
     p.send_signal(signal.SIGINT)
     out, err = p.communicate()
-    if p.returncode != 0:  # else the run ended before the signal came
-        assert p.returncode == 130, err
+    assert p.returncode in (0, 130), err  # 0: the run ended before the signal came
+    if p.returncode == 130:
         assert "interrupted:" in err and "to resume, run `oesweep run" in err and "Traceback" not in err
         assert not (tmp_path / "stopped" / "cells.parquet").exists()
     o = subprocess.run(args[:-2], capture_output=True, text=True)
