@@ -137,8 +137,8 @@ def test_load_reads_a_run_merged_from_shards(tmp_path):
 
 # A Python thread feeds a named pipe that the engine reads: it can only do so while the call
 # has released the GIL, so a call that held it would wait forever for its input. Run in a child
-# process, whose timeout only turns that deadlock into a failure (a passing run takes well under
-# a second of it).
+# process, whose timeout only turns that deadlock into a failure (a passing run needs a few
+# seconds of it).
 GIL_CHILD = textwrap.dedent(
     """
     import json, os, sys, threading
