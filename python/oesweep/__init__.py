@@ -229,9 +229,11 @@ def read(
     ``","``, ``";"``, ``"tab"`` or ``"whitespace"`` (default: sniffed), ``header`` ``True``,
     ``False`` or ``"auto"``. ``oesweep.fit(*oesweep.read("run.csv", rows=[1, 5000]), ...)``."""
     spec: Dict[str, Any] = {"path": os.fspath(path), "u": u, "y": y}
-    for key, value in (("rows", rows), ("delimiter", delimiter), ("header", header)):
+    if rows is not None:
+        spec["rows"] = list(rows)
+    for key, value in (("delimiter", delimiter), ("header", header)):
         if value is not None:
-            spec[key] = list(value) if key == "rows" else value
+            spec[key] = value
     bu, by = _oesweep.read(json.dumps(spec))
     return np.frombuffer(bu, dtype="<f8").copy(), np.frombuffer(by, dtype="<f8").copy()
 
@@ -299,16 +301,17 @@ class _LineProgress:
         self.every = every
         self.start = time.monotonic()
         self.last = -every
-        self.first = None
+        self.first: Optional[int] = None
 
     def __call__(self, done: int, total: int) -> None:
         now = time.monotonic() - self.start
         if self.first is None:
             self.first = done  # cells of a resumed checkpoint do not count towards the rate
+        first = self.first
         if total == 0 or (now - self.last < self.every and done < total):
             return
         self.last = now
-        rate = (done - self.first) / max(now, 1e-9)
+        rate = (done - first) / max(now, 1e-9)
         eta = f", ETA {(total - done) / rate:.0f} s" if 0 < rate and done < total else ""
         self.stream.write(f"\r{done}/{total} cells, {rate:.1f} cells/s, {now:.0f} s{eta}   ")
         self.stream.flush()

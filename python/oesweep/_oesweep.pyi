@@ -3,7 +3,12 @@
 from os import PathLike
 from typing import Any, Callable, Optional, Tuple, Union
 
+import numpy as np
+from numpy.typing import NDArray
 from typing_extensions import Buffer
+
+# What the package hands over (a float64 ndarray); the module takes any buffer of float64.
+_Floats = Union[NDArray[np.float64], Buffer]
 
 __version__: str
 
@@ -13,8 +18,8 @@ class OutputError(OSError): ...
 class LockError(OutputError): ...
 
 def fit(
-    u: Buffer,
-    y: Buffer,
+    u: _Floats,
+    y: _Floats,
     nb: int,
     nf: int,
     k: float,
@@ -22,8 +27,8 @@ def fit(
     ts: float,
     offset: str,
     initial_state: str,
-    val_u: Optional[Buffer] = None,
-    val_y: Optional[Buffer] = None,
+    val_u: Optional[_Floats] = None,
+    val_y: Optional[_Floats] = None,
 ) -> str: ...
 def run(
     job: Union[str, PathLike[str]],
@@ -33,7 +38,7 @@ def run(
     force: bool = False,
     on_progress: Optional[Callable[[int, int], Any]] = None,
 ) -> str: ...
-def spectrum(u: Buffer, y: Buffer, ts: float, method: str) -> str: ...
+def spectrum(u: _Floats, y: _Floats, ts: float, method: str) -> str: ...
 def report(folder: Union[str, PathLike[str]]) -> str: ...
 def export(folder: Union[str, PathLike[str]], pick: Optional[str] = None) -> str: ...
 def write_model(doc: str, to: str, out: Optional[Union[str, PathLike[str]]] = None) -> str: ...
