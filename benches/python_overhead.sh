@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The Python package's overhead over the engine (benches/python_overhead.py): builds the
-# package from this checkout into a fresh venv, then runs the benchmark against the CLI of the
+# The Python package's overhead over the engine (benches/python_overhead.py): installs the
+# release wheel of this checkout into a fresh venv, then runs the benchmark against the CLI of the
 # same checkout. Time on an idle machine only. Usage: bash benches/python_overhead.sh [RUNS]
 set -euo pipefail
 cd "$(dirname "$0")/.."

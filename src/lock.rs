@@ -60,7 +60,7 @@ fn in_use(out: &Path, what: &str, pid: Option<u32>) -> Error {
         Some(p) => format!(" (pid {p})"),
         None => String::new(),
     };
-    Error::input(out, format!("in use by {what}{by}; wait until it ends, or stop it"))
+    Error::locked(out, format!("in use by {what}{by}; wait until it ends, or stop it"))
 }
 
 /// Shard runs that hold their lock in `out`, as "shard I/N (pid P)".
@@ -141,7 +141,7 @@ mod tests {
         let out = dir.path();
         let held = lock_output(out).unwrap();
         let e = lock_output(out).unwrap_err();
-        assert!(e.is_bad_input());
+        assert!(e.is_bad_input() && matches!(e, Error::Locked { .. }), "{e:?}");
         let msg = e.to_string();
         assert!(
             msg.contains("in use by another oesweep run") && msg.contains(&std::process::id().to_string()),

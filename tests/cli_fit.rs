@@ -159,3 +159,25 @@ fn bad_inputs_give_exit_2_and_a_clear_message() {
         assert_eq!(msg.trim().lines().count(), 1, "one line expected: {msg}");
     }
 }
+
+/// The command line run in-process (the Python package's `oesweep` command) gives the binary's
+/// exit codes, `--help` and usage errors included, and returns rather than exits.
+#[test]
+fn the_command_line_in_process_returns_the_binarys_exit_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    let sys = system_file(dir.path());
+    let data = dir.path().join("d.csv");
+    let (sys, data) = (sys.to_str().unwrap(), data.to_str().unwrap());
+    let cases: [(&[&str], u8); 5] = [
+        (&["--help"], 0),
+        (&["fit", "--nb", "2"], 2),
+        (&["fit", "--data", "missing.csv", "--nb", "2", "--nf", "2", "--k", "1"], 2),
+        (&["simulate", "--system", sys, "--out", data, "--n", "300"], 0),
+        (&["fit", "--data", data, "--nb", "2", "--nf", "2", "--k", "1", "--json"], 0),
+    ];
+    for (args, code) in cases {
+        let argv = std::iter::once("oesweep").chain(args.iter().copied());
+        assert_eq!(oesweep::cli::main_with_args(argv), code, "{args:?}");
+        assert_eq!(oesweep(args).status.code(), Some(i32::from(code)), "{args:?}");
+    }
+}

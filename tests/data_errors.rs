@@ -25,6 +25,8 @@ fn err_uy(path: &Path, want: &str) -> String {
     assert!(msg.contains(name), "message does not name the file: {msg}");
     assert!(msg.contains(want), "message lacks '{want}': {msg}");
     assert!(e.is_bad_input());
+    // Of the data's kind, whatever the file is called (the Python package's DataError).
+    assert!(matches!(e, oesweep::Error::Data { .. }), "{e:?}");
     msg
 }
 

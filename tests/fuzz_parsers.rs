@@ -30,7 +30,7 @@ const VALID_VAL: &str = include_str!("bad_inputs/_valid/val.csv");
 fn checked_message(e: &Error) -> String {
     assert!(e.is_bad_input(), "not a bad-input error: {e}");
     let msg = match e {
-        Error::Input { msg, .. } => msg.clone(),
+        Error::Input { msg, .. } | Error::Data { msg, .. } => msg.clone(),
         other => other.to_string(),
     };
     assert!(!msg.contains('\n') && !msg.contains('\r'), "message is not one line: {msg:?}");

@@ -3,6 +3,10 @@
 The engine is the Rust library of this repository; this package calls it in-process and
 returns Python objects: ``fit`` gives a :class:`Model`, ``sweep`` and ``load`` a :class:`Sweep`
 whose ``cells`` is a polars DataFrame. Every call releases the GIL while the engine works.
+Errors are raised by kind, with the command line's one-line message: :class:`JobError` (a job,
+setting or results folder), :class:`DataError` (a data file or array), :class:`OutputError`
+(an output that cannot be written) and its :class:`LockError` (an output folder another run
+holds).
 """
 
 from __future__ import annotations
@@ -11,7 +15,6 @@ import json
 import os
 import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any, Callable, Dict, Optional, Sequence, Union
@@ -19,11 +22,11 @@ from typing import Any, Callable, Dict, Optional, Sequence, Union
 import numpy as np
 
 from . import _oesweep
-from ._oesweep import DataError, JobError
+from ._oesweep import DataError, JobError, LockError, OutputError
 
 __all__ = [
-    "fit", "read", "sweep", "load", "spectrum", "Model", "ContinuousModel", "Sweep", "JobError", "DataError",
-    "__version__",
+    "fit", "read", "sweep", "load", "spectrum", "Model", "ContinuousModel", "Sweep",
+    "JobError", "DataError", "OutputError", "LockError", "__version__",
 ]
 __version__ = _oesweep.__version__
 
@@ -31,8 +34,9 @@ ArrayLike = Union[np.ndarray, Sequence[float], Any]
 
 
 def _f64(name: str, x: ArrayLike) -> np.ndarray:
-    """Any 1-D float or int array (numpy, pandas or polars Series, list) as a C-contiguous,
-    aligned float64 numpy array: the array itself when it already is one (no copy)."""
+    """Any 1-D float or int array (numpy, pandas or polars Series, list) as a float64 numpy
+    array, which the native module reads through the buffer protocol: the array itself when it
+    already is one (no copy)."""
     if hasattr(x, "to_numpy"):
         x = x.to_numpy()
     a = np.asarray(x)
@@ -43,10 +47,25 @@ def _f64(name: str, x: ArrayLike) -> np.ndarray:
     return np.require(a, dtype=np.float64, requirements=["C", "A"])
 
 
-def _ref(a: np.ndarray) -> tuple:
-    """The native module's view of an array from :func:`_f64` (address, length); the caller
-    keeps ``a`` alive for the call, and the engine copies it once."""
-    return (a.ctypes.data, a.size)
+# The fields a model can have, from any of its sources (`fit`, a results folder's pick, an
+# export): one a source lacks reads as None (a least-squares model has no k); any other name
+# is a typo and raises AttributeError.
+_MODEL_FIELDS = frozenset(
+    """aic aicc b b_std band_hz basis bic bootstrap cancellations converged covariance criterion
+    data delay den dt f f_std fit fit_band fit_exp fit_val fit_val_exp fpe gamma initial_state
+    input_level iterations k k_index l1c least_squares max_pole_radius max_rel_std method model
+    n nb nf noise_variance num offset offset_mode offset_std parameters quadratic raic rbic reason
+    reflections resid_indep_p resid_white_p score seconds sigma start status termination ts
+    validation validation_column warnings""".split()
+)
+
+
+def _scipy_signal():
+    try:
+        import scipy.signal
+    except ImportError as e:
+        raise ImportError("this needs scipy: pip install 'oesweep[scipy]'") from e
+    return scipy.signal
 
 
 class Model:
@@ -64,10 +83,10 @@ class Model:
             setattr(self, key, value)
 
     def __getattr__(self, name: str) -> Any:
-        # Fields absent from a source (e.g. a least-squares model has no k) read as None.
-        if name.startswith("_"):
-            raise AttributeError(name)
-        return None
+        # Only called for names that are not set: a known field this model's source lacks.
+        if name in _MODEL_FIELDS:
+            return None
+        raise AttributeError(f"'Model' object has no attribute {name!r}")
 
     @property
     def num_den(self):
@@ -81,8 +100,8 @@ class Model:
 
     def simulate(self, u: ArrayLike, initial_state: Optional[ArrayLike] = None) -> np.ndarray:
         """The model output for input ``u`` (data units), from zero initial state unless
-        ``initial_state`` (``scipy.signal.lfilter``'s ``zi``) is given."""
-        from scipy.signal import lfilter
+        ``initial_state`` (``scipy.signal.lfilter``'s ``zi``) is given. Needs scipy."""
+        lfilter = _scipy_signal().lfilter
 
         u = np.asarray(u, dtype=np.float64) - float(self.input_level or 0.0)
         num, den = self.num_den
@@ -101,10 +120,10 @@ class Model:
         return (num[None, :] * z1[:, None] ** powers).sum(1) / (den[None, :] * z1[:, None] ** powers).sum(1)
 
     def to_scipy(self):
-        """``scipy.signal.dlti`` with ``dt = ts``."""
+        """``scipy.signal.dlti`` with ``dt = ts``. Needs scipy."""
         import warnings
 
-        from scipy.signal import dlti
+        dlti = _scipy_signal().dlti
 
         num, den = self.num_den
         with warnings.catch_warnings():
@@ -117,7 +136,9 @@ class Model:
         try:
             import control
         except ImportError as e:
-            raise ImportError("Model.to_control needs the python-control package: pip install control") from e
+            raise ImportError(
+                "Model.to_control needs the python-control package: pip install 'oesweep[control]'"
+            ) from e
         num, den = self.num_den
         return control.tf(num, den, float(self.ts))
 
@@ -230,8 +251,8 @@ def fit(
     if validation is not None:
         val = (_f64("validation u", validation[0]), _f64("validation y", validation[1]))
     text = _oesweep.fit(
-        _ref(u), _ref(y), int(nb), int(nf), float(k), int(delay), float(ts), offset, initial_state,
-        *((_ref(val[0]), _ref(val[1])) if val is not None else (None, None)),
+        u, y, int(nb), int(nf), float(k), int(delay), float(ts), offset, initial_state,
+        *(val if val is not None else (None, None)),
     )
     report = json.loads(text)
     fields = {key: report[key] for key in report if key not in ("ls",)}
@@ -255,9 +276,11 @@ def read(
     ``","``, ``";"``, ``"tab"`` or ``"whitespace"`` (default: sniffed), ``header`` ``True``,
     ``False`` or ``"auto"``. ``oesweep.fit(*oesweep.read("run.csv", rows=[1, 5000]), ...)``."""
     spec: Dict[str, Any] = {"path": os.fspath(path), "u": u, "y": y}
-    for key, value in (("rows", rows), ("delimiter", delimiter), ("header", header)):
+    if rows is not None:
+        spec["rows"] = list(rows)
+    for key, value in (("delimiter", delimiter), ("header", header)):
         if value is not None:
-            spec[key] = list(value) if key == "rows" else value
+            spec[key] = value
     bu, by = _oesweep.read(json.dumps(spec))
     return np.frombuffer(bu, dtype="<f8").copy(), np.frombuffer(by, dtype="<f8").copy()
 
@@ -325,16 +348,17 @@ class _LineProgress:
         self.every = every
         self.start = time.monotonic()
         self.last = -every
-        self.first = None
+        self.first: Optional[int] = None
 
     def __call__(self, done: int, total: int) -> None:
         now = time.monotonic() - self.start
         if self.first is None:
             self.first = done  # cells of a resumed checkpoint do not count towards the rate
+        first = self.first
         if total == 0 or (now - self.last < self.every and done < total):
             return
         self.last = now
-        rate = (done - self.first) / max(now, 1e-9)
+        rate = (done - first) / max(now, 1e-9)
         eta = f", ETA {(total - done) / rate:.0f} s" if 0 < rate and done < total else ""
         self.stream.write(f"\r{done}/{total} cells, {rate:.1f} cells/s, {now:.0f} s{eta}   ")
         self.stream.flush()
@@ -343,6 +367,13 @@ class _LineProgress:
         if self.last >= 0:
             self.stream.write("\n")
             self.stream.flush()
+
+
+def _json_value(x: Any) -> Any:
+    """A job dict's paths (``pathlib.Path``) as the strings a job file holds."""
+    if isinstance(x, os.PathLike):
+        return os.fspath(x)
+    raise JobError(f"job: {x!r} ({type(x).__name__}) is not a JSON value")
 
 
 def _on_terminal() -> bool:
@@ -377,32 +408,26 @@ def sweep(
         engine_bar, callback = True, None
     else:
         engine_bar, callback = False, (_LineProgress() if progress else None)
-    try:
-        if isinstance(job, dict) or output is not None:
-            if not isinstance(job, dict):
-                with open(job) as fh:
-                    doc = json.load(fh)
-                base = Path(job).resolve().parent
-                for key in ("data", "validation"):
-                    records = doc.get(key)
-                    for record in records if isinstance(records, list) else [records]:
-                        if isinstance(record, dict) and "path" in record:
-                            record["path"] = str(base / record["path"])
-                if "output" in doc and output is None:
-                    doc["output"] = str(base / doc["output"])
-            else:
-                doc = json.loads(json.dumps(job))
-            if output is not None:
-                doc["output"] = str(Path(output).resolve())
-            with tempfile.NamedTemporaryFile("w", suffix=".json", dir=os.getcwd(), delete=False) as fh:
-                json.dump(doc, fh)
-                path = fh.name
+    # The job goes to the engine as text when it is a dict or its output is replaced: no file
+    # is written for it. A job file's relative paths stay relative to its folder, a dict's to
+    # the current directory (the folder of the name "<job dict>").
+    if isinstance(job, dict):
+        name, doc = "<job dict>", json.loads(json.dumps(job, default=_json_value))
+    else:
+        name, doc = os.fspath(job), None
+        if output is not None:
             try:
-                folder = _oesweep.run(path, threads, engine_bar, force, callback)
-            finally:
-                os.unlink(path)
-        else:
-            folder = _oesweep.run(str(job), threads, engine_bar, force, callback)
+                with open(job, encoding="utf-8-sig") as fh:
+                    doc = json.load(fh)
+            except (OSError, ValueError):
+                doc = None  # the engine reads it again and reports it as the command line does
+    text = None
+    if isinstance(doc, dict):
+        if output is not None:
+            doc["output"] = str(Path(output).resolve())
+        text = json.dumps(doc)
+    try:
+        folder = _oesweep.run(name, text, threads, engine_bar, force, callback)
     finally:
         if isinstance(callback, _LineProgress):
             callback.close()
@@ -419,7 +444,7 @@ def spectrum(u: ArrayLike, y: ArrayLike, ts: float, method: str = "robust"):
     import polars as pl
 
     u, y = _f64("u", u), _f64("y", y)
-    report = json.loads(_oesweep.spectrum(_ref(u), _ref(y), float(ts), method))
+    report = json.loads(_oesweep.spectrum(u, y, float(ts), method))
     g = np.array(report["re"]) + 1j * np.array(report["im"])
     return pl.DataFrame(
         {

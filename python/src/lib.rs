@@ -1,50 +1,49 @@
 //! The Python package's native module `oesweep._oesweep`: thin calls into the oesweep library
-//! that exchange JSON text and raw float64 bytes, so the pure-Python layer (`oesweep/`) owns
-//! the Python types and the binding stays independent of numpy's and polars' versions. Every
-//! call releases the GIL while the engine works.
+//! that exchange JSON text and float64 arrays (through the buffer protocol), so the pure-Python
+//! layer (`oesweep/`) owns the Python types and the binding stays independent of numpy's and
+//! polars' versions. Every call releases the GIL while the engine works.
 
 use oesweep::data::{Offset, Record};
 use oesweep::engine::{self, FitRequest, RunEnd, RunOptions, Watch};
 use oesweep::estimate::InitialState;
 use oesweep::spectral::SpectrumMethod;
+use pyo3::buffer::PyBuffer;
 use pyo3::create_exception;
-use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 create_exception!(_oesweep, JobError, PyValueError, "A job, a setting or a results folder that is wrong.");
 create_exception!(_oesweep, DataError, PyValueError, "A data file or array that is wrong.");
+create_exception!(_oesweep, OutputError, PyOSError, "An output file or folder that cannot be written.");
+create_exception!(_oesweep, LockError, OutputError, "An output folder that another run holds.");
 
-/// The engine's error as the typed Python exception, with the CLI's one-line message.
+/// The engine's error as the Python exception of its kind, with the CLI's one-line message.
 fn to_py(e: oesweep::Error) -> PyErr {
     let msg = e.to_string();
-    match &e {
-        oesweep::Error::Input { path, .. } if path.extension().is_some_and(|x| x == "json") => JobError::new_err(msg),
-        oesweep::Error::Input { .. } => DataError::new_err(msg),
-        oesweep::Error::Invalid(_) => JobError::new_err(msg),
-        _ => PyRuntimeError::new_err(msg),
+    match e {
+        oesweep::Error::Input { .. } | oesweep::Error::Invalid(_) => JobError::new_err(msg),
+        oesweep::Error::Data { .. } => DataError::new_err(msg),
+        oesweep::Error::Locked { .. } => LockError::new_err(msg),
+        oesweep::Error::Output { .. } => OutputError::new_err(msg),
     }
 }
 
-/// The samples of a float64 array the Python layer made C-contiguous and aligned
-/// (`oesweep._f64`), by address and length: copied once, here, into the record. The abi3 wheel
-/// (CPython >= 3.9) has no buffer protocol in the limited API, and `ndarray.tobytes()` would
-/// copy twice.
-fn floats(name: &str, array: (usize, usize)) -> PyResult<Vec<f64>> {
-    let (addr, len) = array;
-    if len == 0 {
-        return Ok(Vec::new());
+/// The samples of a one-dimensional float64 array, copied (in the caller's thread, holding the
+/// GIL) through the buffer protocol, which checks the element type, size and strides: the
+/// engine only ever reads memory the array exports. The Python layer converts other arrays,
+/// lists and Series to float64 first (`oesweep._f64`).
+fn floats(name: &str, array: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
+    let not_floats = |why: String| DataError::new_err(format!("{name}: expected a 1-D float64 array ({why})"));
+    let buf = PyBuffer::<f64>::get(array).map_err(|e| not_floats(e.value(array.py()).to_string()))?;
+    if buf.dimensions() != 1 {
+        return Err(not_floats(format!("got {} dimensions", buf.dimensions())));
     }
-    if addr == 0 || !addr.is_multiple_of(std::mem::align_of::<f64>()) {
-        return Err(DataError::new_err(format!("{name}: not an aligned float64 array")));
-    }
-    // SAFETY: the caller holds the GIL and a reference to the contiguous, aligned float64
-    // array of `len` elements at `addr` (the Python layer keeps it alive for the call), and the
-    // copy is made before the GIL is released.
-    Ok(unsafe { std::slice::from_raw_parts(addr as *const f64, len) }.to_vec())
+    buf.to_vec(array.py())
 }
 
 fn parse<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> PyResult<T> {
@@ -58,8 +57,8 @@ fn parse<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> PyResult<T> {
 #[allow(clippy::too_many_arguments)]
 fn fit(
     py: Python<'_>,
-    u: (usize, usize),
-    y: (usize, usize),
+    u: &Bound<'_, PyAny>,
+    y: &Bound<'_, PyAny>,
     nb: usize,
     nf: usize,
     k: f64,
@@ -67,8 +66,8 @@ fn fit(
     ts: f64,
     offset: &str,
     initial_state: &str,
-    val_u: Option<(usize, usize)>,
-    val_y: Option<(usize, usize)>,
+    val_u: Option<&Bound<'_, PyAny>>,
+    val_y: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<String> {
     let est = Record::from_arrays("<u, y arrays>", floats("u", u)?, floats("y", y)?).map_err(to_py)?;
     let val = match (val_u, val_y) {
@@ -93,16 +92,20 @@ fn fit(
 /// How often a running sweep looks at Python's signals and calls the progress callback.
 const POLL: Duration = Duration::from_millis(100);
 
-/// Run a job file (`oesweep run`); returns the results folder. The engine runs on a thread of
-/// its own while this one, without the GIL, wakes every [`POLL`] to let Python handle its
-/// signals and to call `on_progress(done, total)`: Ctrl-C (or any exception the callback
-/// raises) stops the run with the checkpoint kept and is raised here once the cells in flight
-/// are saved, so the same call resumes. Python's own SIGINT handler stays in place.
+/// Run a job (`oesweep run`): the job file `job`, or, with `text`, the job given as JSON text
+/// that `job` only names and locates relative paths from (nothing is written for it); returns
+/// the results folder. The engine runs on a thread of its own while this one, without the GIL,
+/// wakes every [`POLL`] to let Python handle its signals and to call `on_progress(done,
+/// total)`: Ctrl-C (or any exception the callback raises) stops the run with the checkpoint
+/// kept and is raised here once the cells in flight are saved, so the same call resumes.
+/// Python's own SIGINT handler stays in place.
 #[pyfunction]
-#[pyo3(signature = (job, threads=None, progress=true, force=false, on_progress=None))]
+#[pyo3(signature = (job, text=None, threads=None, progress=true, force=false, on_progress=None))]
+#[allow(clippy::too_many_arguments)]
 fn run(
     py: Python<'_>,
     job: PathBuf,
+    text: Option<String>,
     threads: Option<usize>,
     progress: bool,
     force: bool,
@@ -126,9 +129,12 @@ fn run(
         std::thread::scope(|s| {
             // The engine says when it ends, so the call returns at once rather than at the next poll.
             let (ended, end) = std::sync::mpsc::channel::<()>();
-            let (job, opts) = (&job, &opts);
+            let (job, text, opts) = (&job, &text, &opts);
             let engine = s.spawn(move || {
-                let outcome = engine::run(job, opts, &|_| {});
+                let outcome = match text {
+                    Some(text) => engine::run_text(job, text, opts, &|_| {}),
+                    None => engine::run(job, opts, &|_| {}),
+                };
                 let _ = ended.send(());
                 outcome
             });
@@ -171,7 +177,7 @@ fn run(
 
 /// The spectral estimate of float64 arrays (`oesweep spectrum --json`'s report as JSON text).
 #[pyfunction]
-fn spectrum(py: Python<'_>, u: (usize, usize), y: (usize, usize), ts: f64, method: &str) -> PyResult<String> {
+fn spectrum(py: Python<'_>, u: &Bound<'_, PyAny>, y: &Bound<'_, PyAny>, ts: f64, method: &str) -> PyResult<String> {
     let rec = Record::from_arrays("<u, y arrays>", floats("u", u)?, floats("y", y)?).map_err(to_py)?;
     let method = parse::<SpectrumMethod>("method", method)?;
     let report = py.detach(|| engine::spectrum_arrays(&rec, ts, method)).map_err(to_py)?;
@@ -235,10 +241,28 @@ fn read(py: Python<'_>, spec: &str) -> PyResult<(Py<PyBytes>, Py<PyBytes>)> {
     Ok((bytes(&rec.u), bytes(&rec.y)))
 }
 
+/// The `oesweep` command in this process (the wheel's console script): `argv` as
+/// `sys.argv`, the program's name first; returns the exit code. Runs without the GIL, with
+/// Rust's standard streams flushed before it returns (the process ends in Python, where Rust's
+/// exit-time flush does not run). A panic is reported as the binary reports it: its message,
+/// then exit code 101.
+#[pyfunction]
+fn cli(py: Python<'_>, argv: Vec<OsString>) -> i32 {
+    py.detach(|| {
+        let code = std::panic::catch_unwind(|| oesweep::cli::main_with_args(argv)).map_or(101, i32::from);
+        use std::io::Write;
+        let _ = std::io::stdout().flush();
+        let _ = std::io::stderr().flush();
+        code
+    })
+}
+
 #[pymodule]
 fn _oesweep(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("JobError", m.py().get_type::<JobError>())?;
     m.add("DataError", m.py().get_type::<DataError>())?;
+    m.add("OutputError", m.py().get_type::<OutputError>())?;
+    m.add("LockError", m.py().get_type::<LockError>())?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(report, m)?)?;
@@ -247,6 +271,7 @@ fn _oesweep(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write_model, m)?)?;
     m.add_function(wrap_pyfunction!(read, m)?)?;
     m.add_function(wrap_pyfunction!(to_continuous, m)?)?;
+    m.add_function(wrap_pyfunction!(cli, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

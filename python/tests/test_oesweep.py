@@ -1,5 +1,6 @@
-"""The Python package against the command line built from the same checkout (OESWEEP_BIN),
-and the model's forms against scipy."""
+"""The Python package against its own `oesweep` command (the wheel's console script, or
+OESWEEP_BIN), that command against the binary cargo builds from the same checkout
+(OESWEEP_CARGO_BIN), and the model's forms against scipy."""
 
 import json
 import os
@@ -7,7 +8,8 @@ import re
 import shutil
 import subprocess
 import signal
-import threading
+import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -19,6 +21,7 @@ import scipy.signal
 import oesweep
 
 BIN = os.environ.get("OESWEEP_BIN") or shutil.which("oesweep")
+CARGO_BIN = os.environ.get("OESWEEP_CARGO_BIN")
 
 
 def record(n=1500, seed=3, spikes=0.05):
@@ -132,29 +135,52 @@ def test_load_reads_a_run_merged_from_shards(tmp_path):
     assert merged.m2.b == single.m2.b and merged.selection["picks"] == single.selection["picks"]
 
 
-def test_a_python_thread_runs_while_a_sweep_runs(tmp_path):
-    u, y = record(4000)
+# A Python thread feeds a named pipe that the engine reads: it can only do so while the call
+# has released the GIL, so a call that held it would wait forever for its input. Run in a child
+# process, whose timeout only turns that deadlock into a failure (a passing run needs a few
+# seconds of it).
+GIL_CHILD = textwrap.dedent(
+    """
+    import json, os, sys, threading
+    import oesweep
+
+    folder, csv, job = sys.argv[1], sys.argv[2], sys.argv[3]
+
+    def feed(fifo, text):
+        def write():
+            with open(fifo, "w") as fh:
+                fh.write(text)
+        os.mkfifo(fifo)
+        t = threading.Thread(target=write)
+        t.start()
+        return t
+
+    # A data file (read by one engine call) and a job file (read by the engine's thread of a sweep).
+    t = feed(os.path.join(folder, "fifo.csv"), csv)
+    u, y = oesweep.read(os.path.join(folder, "fifo.csv"))
+    t.join()
+    t = feed(os.path.join(folder, "fifo-job.json"), job)
+    s = oesweep.sweep(os.path.join(folder, "fifo-job.json"), progress=False, threads=1)
+    t.join()
+    print(json.dumps({"n": len(u), "y0": y[0], "cells": s.cells.height}))
+    """
+)
+
+
+def test_a_python_thread_runs_while_the_engine_works(tmp_path):
+    u, y = record(300)
+    write_csv(tmp_path / "d.csv", u, y)
     job = job_for(tmp_path, u, y)
-    job["grid"] = {"nb": [1, 6], "nf": [1, 6], "k": {"from": 0.1, "to": 2.0, "count": 8, "spacing": "log"}}
-    ticks = []
-    stop = threading.Event()
-
-    def tick():
-        while not stop.is_set():
-            ticks.append(1)
-            stop.wait(0.001)
-
-    t = threading.Thread(target=tick, daemon=True)
-    t.start()
     try:
-        before = len(ticks)
-        oesweep.sweep(job, progress=False, threads=1)
-        during = len(ticks) - before
-    finally:
-        stop.set()
-        t.join()
-    # The count depends on the machine; that it moved at all needs the GIL released.
-    assert during > 0
+        o = subprocess.run(
+            [sys.executable, "-c", GIL_CHILD, str(tmp_path), (tmp_path / "d.csv").read_text(), json.dumps(job)],
+            capture_output=True, text=True, timeout=300,
+        )
+    except subprocess.TimeoutExpired:
+        pytest.fail("a call into the engine held the GIL: the thread feeding its input never ran")
+    assert o.returncode == 0, o.stderr
+    got = json.loads(o.stdout)
+    assert got["n"] == 300 and got["y0"] == y[0] and got["cells"] > 0
 
 
 def test_bad_inputs_raise_the_typed_errors_and_write_nothing(tmp_path):
@@ -398,3 +424,155 @@ def test_read_takes_a_file_as_a_job_names_a_record(tmp_path):
         oesweep.read(path, u="volts", y=2)
     with pytest.raises(oesweep.DataError, match="missing.csv"):
         oesweep.read(tmp_path / "missing.csv")
+
+
+def test_unknown_model_attributes_raise_and_absent_fields_read_as_none():
+    u, y = record()
+    m = oesweep.fit(u, y, 2, 2, 0.5, ts=0.01)
+    with pytest.raises(AttributeError, match="offest"):
+        m.offest  # noqa: B018
+    assert not hasattr(m, "fit_vall")
+    # A model of a source that lacks a field (here without k and covariance) reads it as None.
+    ls = oesweep.Model({"b": m.b, "f": m.f, "delay": 1, "ts": 0.01})
+    assert ls.k is None and ls.covariance is None and "least squares" in repr(ls)
+
+
+def test_arrays_cross_the_boundary_only_as_float64_buffers():
+    from oesweep import _oesweep
+
+    u, y = record()
+    args = (2, 2, 0.5, 1, 0.01, "estimate", "estimate")
+    # An address and a length are no array: the engine reads nothing it was not handed.
+    with pytest.raises((oesweep.DataError, TypeError)):
+        _oesweep.fit((u.ctypes.data, u.size), (y.ctypes.data, y.size), *args)
+    with pytest.raises(oesweep.DataError, match="u: expected a 1-D float64 array"):
+        _oesweep.fit(u.astype(np.float32), y, *args)
+    with pytest.raises(oesweep.DataError, match="2 dimensions"):
+        _oesweep.fit(np.c_[u, u], y, *args)
+    # Strided views are copied through the buffer protocol as the values they show.
+    uu, yy = np.repeat(u, 2), np.repeat(y, 2)
+    assert json.loads(_oesweep.fit(uu[::2], yy[::2], *args))["b"] == oesweep.fit(u, y, 2, 2, 0.5, ts=0.01).b
+
+
+def test_a_dict_job_writes_nothing_but_its_output_folder(tmp_path, monkeypatch):
+    u, y = record(600)
+    (tmp_path / "cwd").mkdir()
+    monkeypatch.chdir(tmp_path / "cwd")
+    write_csv(tmp_path / "cwd" / "d.csv", u, y)
+    job = {"name": "rel", "data": {"path": "d.csv", "ts": 0.01}, "grid": {"nb": [1, 2], "nf": [1, 2], "k": [1.0]},
+           "output": "out"}
+    s = oesweep.sweep(job, progress=False)
+    assert s.folder.resolve() == (tmp_path / "cwd" / "out").resolve()
+    assert sorted(p.name for p in (tmp_path / "cwd").iterdir()) == ["d.csv", "out"]
+    # With another output folder, a job file's relative paths stay relative to the job file.
+    (tmp_path / "cwd" / "job.json").write_text(json.dumps(job))
+    monkeypatch.chdir(tmp_path)
+    oesweep.sweep(tmp_path / "cwd" / "job.json", output=tmp_path / "elsewhere", progress=False)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cwd", "elsewhere"]
+    assert sorted(p.name for p in (tmp_path / "cwd").iterdir()) == ["d.csv", "job.json", "out"]
+    # A bad dict job is named as such.
+    with pytest.raises(oesweep.JobError, match="<job dict>: invalid job"):
+        oesweep.sweep({**job, "grdi": {}}, progress=False)
+
+
+def test_errors_come_by_kind_with_the_command_lines_message(tmp_path):
+    import fcntl
+
+    u, y = record(600)
+    job = job_for(tmp_path, u, y)
+    (tmp_path / "job.json").write_text(json.dumps(job))
+
+    def same_as_cli(exc, *args, code):
+        o = cli(*args)
+        pid = lambda text: re.sub(r"tmp-\d+", "tmp-PID", text)  # noqa: E731 (a temporary file's name)
+        assert o.returncode == code, o.stderr
+        assert pid(o.stderr.strip()).endswith(pid(f"error: {exc.value}")), (o.stderr, str(exc.value))
+
+    # A locked output folder: another run holds it (this process, through the lock file).
+    (tmp_path / "out").mkdir()
+    with open(tmp_path / "out" / ".oesweep.lock", "w") as holder:
+        fcntl.flock(holder, fcntl.LOCK_EX)
+        with pytest.raises(oesweep.LockError, match="in use by another oesweep run") as e:
+            oesweep.sweep(job, progress=False)
+        same_as_cli(e, "run", str(tmp_path / "job.json"), "--quiet", code=2)
+    assert issubclass(oesweep.LockError, oesweep.OutputError) and issubclass(oesweep.OutputError, OSError)
+    # A result file that cannot be written (a folder is in its place): the CLI's exit code 1.
+    blocked = {**job, "output": str(tmp_path / "blocked")}
+    (tmp_path / "blocked" / "selection.json").mkdir(parents=True)
+    (tmp_path / "blocked.json").write_text(json.dumps(blocked))
+    with pytest.raises(oesweep.OutputError, match="selection.json") as e:
+        oesweep.sweep(blocked, progress=False)
+    same_as_cli(e, "run", str(tmp_path / "blocked.json"), "--quiet", code=1)
+    # A data file is a data error whatever its name, the job file's own faults a job error.
+    bad_data = {**job, "data": {**job["data"], "path": str(tmp_path / "missing.json")}}
+    (tmp_path / "bad-data.json").write_text(json.dumps(bad_data))
+    with pytest.raises(oesweep.DataError, match="missing.json") as e:
+        oesweep.sweep(tmp_path / "bad-data.json", progress=False)
+    same_as_cli(e, "run", str(tmp_path / "bad-data.json"), "--quiet", code=2)
+    (tmp_path / "bad-job.json").write_text(json.dumps({**job, "grid": {**job["grid"], "k": [-1.0]}}))
+    with pytest.raises(oesweep.JobError, match="bad-job.json") as e:
+        oesweep.sweep(tmp_path / "bad-job.json", progress=False)
+    same_as_cli(e, "run", str(tmp_path / "bad-job.json"), "--quiet", code=2)
+
+
+def without_seconds(text):
+    """A `--json` report without its timing, which is the only field two runs may differ in."""
+    doc = json.loads(text)
+    doc.pop("seconds", None)
+    return doc
+
+
+def test_the_command_behaves_as_the_binary_cargo_builds(tmp_path):
+    if not CARGO_BIN:
+        assert os.environ.get("CI") != "true", "OESWEEP_CARGO_BIN is not set"
+        pytest.skip("OESWEEP_CARGO_BIN (the cargo-built binary) is not set")
+    u, y = record()
+    write_csv(tmp_path / "d.csv", u, y)
+    (tmp_path / "job.json").write_text(json.dumps(job_for(tmp_path, u, y, "run-OUT")))
+    runs = {}
+    for name, binary in (("wheel", BIN), ("cargo", CARGO_BIN)):
+        def run(*args):
+            return subprocess.run([binary, *args], capture_output=True, text=True, cwd=tmp_path)
+
+        runs[name] = [
+            run("--help"),
+            run("fit", "--nb", "2"),  # a usage error
+            run("fit", "--data", "missing.csv", "--nb", "2", "--nf", "2", "--k", "0.5"),
+            run("spectrum", "--data", "d.csv", "--ts", "0.01", "--json"),
+            run("export", str(tmp_path / "nowhere")),
+        ]
+        runs[name].append(run("fit", "--data", "d.csv", "--nb", "2", "--nf", "2", "--k", "0.5", "--json"))
+        job = (tmp_path / "job.json").read_text().replace("run-OUT", f"run-{name}")
+        (tmp_path / f"job-{name}.json").write_text(job)
+        runs[name].append(run("run", f"job-{name}.json", "--quiet"))
+    codes = [o.returncode for o in runs["wheel"]]
+    assert codes == [o.returncode for o in runs["cargo"]] == [0, 2, 2, 0, 2, 0, 0]
+    for w, c in zip(runs["wheel"][:-2], runs["cargo"][:-2]):
+        assert (w.stdout, w.stderr) == (c.stdout, c.stderr)
+    assert without_seconds(runs["wheel"][-2].stdout) == without_seconds(runs["cargo"][-2].stdout)
+    wheel_run, cargo_run = oesweep.load(tmp_path / "run-wheel"), oesweep.load(tmp_path / "run-cargo")
+    assert wheel_run.cells.drop("seconds").equals(cargo_run.cells.drop("seconds"))
+    assert wheel_run.selection == cargo_run.selection
+
+
+def test_ctrl_c_stops_the_command_resumably(tmp_path):
+    u, y = record(3000)
+    job = job_for(tmp_path, u, y, "stopped")
+    job["grid"] = {"nb": [1, 6], "nf": [1, 6], "k": {"from": 0.1, "to": 2.0, "count": 10, "spacing": "log"}}
+    (tmp_path / "job.json").write_text(json.dumps(job))
+    args = [BIN, "run", str(tmp_path / "job.json"), "--quiet", "--threads", "1", "--checkpoint-every", "0.01"]
+    p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    parts = tmp_path / "stopped" / "parts"
+    # Ctrl-C once the first finished cells are saved (the engine's handler is in place then).
+    while p.poll() is None and not (parts.is_dir() and any(parts.glob("*.parquet"))):
+        time.sleep(0.01)
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate()
+    assert p.returncode in (0, 130), err  # 0: the run ended before the signal came
+    if p.returncode == 130:
+        assert "interrupted:" in err and "to resume, run `oesweep run" in err and "Traceback" not in err
+        assert not (tmp_path / "stopped" / "cells.parquet").exists()
+    o = subprocess.run(args[:-2], capture_output=True, text=True)
+    assert o.returncode == 0, o.stderr
+    whole = oesweep.sweep(job, output=tmp_path / "whole", progress=False)
+    assert oesweep.load(tmp_path / "stopped").cells.drop("seconds").equals(whole.cells.drop("seconds"))

@@ -20,18 +20,47 @@ use print::{
 /// The whole command line: parse the arguments, run the command, print an error as one line
 /// and map it to the exit code (0 success, 1 failure of the work itself, 2 bad input).
 pub fn main() -> std::process::ExitCode {
+    std::process::ExitCode::from(main_with_args(std::env::args_os()))
+}
+
+/// [`main`] with the arguments given (the program's name first) rather than the process's:
+/// for a host process that runs the command line in-process (the Python package's `oesweep`
+/// command). Returns the exit code instead of exiting, also for `--help` and usage errors.
+pub fn main_with_args<I, T>(args: I) -> u8
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
     use clap::Parser;
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        // Help and version as clap prints them (stdout, code 0); a bad command line is one line
+        // and exit 2, like every other bad input (clap's usage and tips follow with --help).
+        Err(e) if !e.use_stderr() => {
+            let _ = e.print();
+            return u8::try_from(e.exit_code()).unwrap_or(0);
+        }
+        Err(e) => {
+            let text = e.to_string();
+            let first = text.lines().next().unwrap_or_default().trim_start_matches("error: ");
+            eprintln!("error: {first} (see oesweep --help)");
+            return 2;
+        }
+    };
     // A bad data file is one line of error, not also a panic message: the library catches a
-    // reader's panic and makes it an input error, and the command (which owns its process,
-    // unlike the library) leaves that panic unprinted.
-    let print = std::panic::take_hook();
+    // reader's panic and makes it an input error, and the command leaves that panic unprinted.
+    // The hook in place before is put back (as a wrapper that calls it) when the command ends,
+    // so a host that runs the command line in-process keeps its own.
+    let before: std::sync::Arc<dyn Fn(&std::panic::PanicHookInfo<'_>) + Send + Sync> =
+        std::sync::Arc::from(std::panic::take_hook());
+    let print = before.clone();
     std::panic::set_hook(Box::new(move |info| {
         if !crate::data::reading_data() {
             print(info);
         }
     }));
-    match run(Cli::parse()) {
-        Ok(code) => std::process::ExitCode::from(code),
+    let code = match run(cli) {
+        Ok(code) => code,
         Err(e) => {
             // One line, whatever the paths contain: control characters are escaped.
             let msg: String = e
@@ -40,9 +69,12 @@ pub fn main() -> std::process::ExitCode {
                 .map(|c| if c.is_control() { c.escape_default().to_string() } else { c.to_string() })
                 .collect();
             eprintln!("error: {msg}");
-            std::process::ExitCode::from(if e.is_bad_input() { 2 } else { 1 })
+            if e.is_bad_input() { 2 } else { 1 }
         }
-    }
+    };
+    drop(std::panic::take_hook());
+    std::panic::set_hook(Box::new(move |info| before(info)));
+    code
 }
 
 /// Run a parsed command; returns the process exit code.

@@ -17,7 +17,7 @@
 //! selected are not looked at (they may be empty, text or have missing values); the selected
 //! ones must hold a finite number in every row of the range.
 //!
-//! Every problem is one [`Error::Input`] naming the file and, where it applies, the line (text,
+//! Every problem is one [`Error::Data`] naming the file and, where it applies, the line (text,
 //! 1-based, counting the header) or row (Parquet and MAT, 1-based data row) and the column: the
 //! user should be able to open the file at the right place from the message alone.
 
@@ -303,7 +303,7 @@ pub struct Columns {
 /// Reads the numeric columns `cols` of a file (format chosen by extension, see the module
 /// docs), in the order of `cols`, restricted to `opts.rows`.
 ///
-/// Fails with one [`Error::Input`] when the file cannot be read, a column is missing, the file
+/// Fails with one [`Error::Data`] when the file cannot be read, a column is missing, the file
 /// has no data row, the row range reaches past the file, or any selected value is not a finite
 /// number.
 pub fn read_columns_with(path: &Path, cols: &[ColumnRef], opts: &ReadOptions) -> Result<Columns> {
@@ -331,10 +331,10 @@ pub fn min_samples(nb: usize, nf: usize, delay: usize) -> usize {
     delay.saturating_add(nb.max(nf)).saturating_add(4usize.saturating_mul(nb.saturating_add(nf))).max(20)
 }
 
-/// An input error whose message is kept on one line: it quotes names and values taken from
+/// A data error whose message is kept on one line: it quotes names and values taken from
 /// job and data files (and messages of the readers), any of which may hold a line break.
 fn input_error(path: &Path, msg: impl Into<String>) -> Error {
-    Error::input(path, one_line(&msg.into()))
+    Error::data(path, one_line(&msg.into()))
 }
 
 /// `s` with control characters escaped (`\n`, `\u{1b}`): names taken from job or data files

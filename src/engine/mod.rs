@@ -79,14 +79,19 @@ impl Prepared {
 
 /// Read and check a job file and every data file it names; nothing is written.
 pub fn prepare(path: &Path) -> Result<Prepared> {
-    let job = job::load(path)?;
+    prepare_job(job::load(path)?)
+}
+
+/// [`prepare`] of a job already read and checked.
+fn prepare_job(job: job::ValidJob) -> Result<Prepared> {
+    let path = &job.file;
     let inputs = job::load_inputs(&job)?;
     let since = std::time::Instant::now();
     let spectral = match job.job.band_hz {
         Some([lo, hi]) => {
             let s =
                 spectral::estimate_within(&inputs.est.u, &inputs.est.y, &inputs.est.seams, job.ts(), job.job.spectrum)
-                    .map_err(|e| Error::input(&job.job.data.first().path, e.to_string()))?;
+                    .map_err(|e| Error::data(&job.job.data.first().path, e.to_string()))?;
             let bins = s.band(lo, hi);
             if bins.is_empty() {
                 return Err(Error::input(
@@ -248,10 +253,25 @@ impl RunOutcome {
 /// Run a job (see the module documentation). Everything that can be checked is checked before
 /// anything is written; `on_resume` hears what the checkpoint held before the sweep starts.
 pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> Result<RunOutcome> {
+    run_loaded(&|| job::load(job_file), opts, on_resume)
+}
+
+/// [`run`] of a job given as JSON text ([`job::from_text`]: `job_file` names it and locates its
+/// relative paths, and is not read), so that a caller holding the job in memory writes no file
+/// for it.
+pub fn run_text(job_file: &Path, text: &str, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> Result<RunOutcome> {
+    run_loaded(&|| job::from_text(job_file, text), opts, on_resume)
+}
+
+fn run_loaded(
+    load: &dyn Fn() -> Result<job::ValidJob>,
+    opts: &RunOptions,
+    on_resume: &dyn Fn(&Resumed),
+) -> Result<RunOutcome> {
     opts.check()?;
     let profile = opts.profile.then(|| Arc::new(Profile::default()));
     let reading = Span::start(profile.as_deref(), Phase::Read);
-    let p = prepare(job_file)?;
+    let p = prepare_job(load()?)?;
     drop(reading);
     if let Some(prof) = &profile {
         prof.add_seconds(Phase::Spectrum, p.spectrum_seconds);

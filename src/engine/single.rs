@@ -324,7 +324,7 @@ pub fn spectrum_arrays(rec: &data::Record, ts: f64, method: spectral::SpectrumMe
 }
 
 fn spectrum_of(rec: &data::Record, ts: f64, method: spectral::SpectrumMethod) -> Result<SpectrumReport> {
-    let est = spectral::estimate(&rec.u, &rec.y, ts, method).map_err(|e| Error::input(&rec.path, e.to_string()))?;
+    let est = spectral::estimate(&rec.u, &rec.y, ts, method).map_err(|e| Error::data(&rec.path, e.to_string()))?;
     let bins: Vec<usize> = (0..est.freq_hz.len()).filter(|&k| est.re[k].is_finite()).collect();
     let bands: Vec<(f64, f64)> = bins.iter().map(|&k| est.magnitude_band(k).unwrap_or((f64::NAN, f64::NAN))).collect();
     Ok(SpectrumReport {

@@ -462,8 +462,15 @@ pub fn k_values(k: &KGrid) -> Vec<f64> {
 /// Read and validate a job file. Does not touch the data files (see [`load_inputs`]).
 pub fn load(path: &Path) -> Result<ValidJob> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read job file: {e}")))?;
+    from_text(path, &text)
+}
+
+/// Validate a job given as JSON text rather than read from a file (the Python package's jobs
+/// built in memory): `path` names the job in messages and its folder is the base of relative
+/// paths, as for the job file [`load`] reads; nothing is read at `path` itself.
+pub fn from_text(path: &Path, text: &str) -> Result<ValidJob> {
     // A byte-order mark (written by some Windows editors) is not JSON but is no error either.
-    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     // serde would read a top-level array positionally and complain about its first element.
     if let Ok(v) = serde_json::from_str::<serde_json::Value>(text)
         && !v.is_object()
@@ -553,6 +560,23 @@ mod tests {
         assert_eq!(bits(&back.ks), bits(&vj.ks));
         assert_eq!(vj.delays, vec![2]);
         assert_eq!(back.ts(), 0.5);
+    }
+
+    #[test]
+    fn a_job_given_as_text_is_the_job_file_it_names_and_nothing_is_read_there() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("job.json");
+        let job = r#"{"name": "x", "data": {"path": "d.csv", "ts": 0.5}, "grid": {"nb": [1, 2], "nf": [1, 2],
+            "k": [1]}, "output": "out"}"#;
+        std::fs::write(&p, job).unwrap();
+        let from_file = load(&p).unwrap();
+        let named = dir.path().join("never-written.json");
+        let given = from_text(&named, job).unwrap();
+        assert_eq!(serde_json::to_value(&given.job).unwrap(), serde_json::to_value(&from_file.job).unwrap());
+        assert_eq!(given.file, named);
+        assert!(!named.exists());
+        let e = from_text(&named, r#"{"name": "x", "grdi": {}}"#).unwrap_err();
+        assert!(matches!(e, Error::Input { .. }) && e.to_string().starts_with(&named.display().to_string()), "{e}");
     }
 
     #[test]
