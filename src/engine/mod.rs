@@ -153,10 +153,18 @@ impl Default for RunOptions {
 
 impl RunOptions {
     fn check(&self) -> Result<()> {
-        if !(self.checkpoint_every.is_finite() && self.checkpoint_every > 0.0) {
+        let every = self.checkpoint_every;
+        if !(every.is_finite() && every > 0.0 && every <= checkpoint::MAX_BATCH_SECONDS) {
             return Err(Error::Invalid(format!(
-                "--checkpoint-every must be a positive number of seconds, got {}",
-                self.checkpoint_every
+                "--checkpoint-every must be a positive number of seconds up to {} (a week), got {every}",
+                checkpoint::MAX_BATCH_SECONDS
+            )));
+        }
+        if self.threads > sweep::MAX_THREADS {
+            return Err(Error::Invalid(format!(
+                "--threads must be at most {} (0: all cores), got {}",
+                sweep::MAX_THREADS,
+                self.threads
             )));
         }
         if self.shard.is_some() && self.report {
@@ -255,7 +263,10 @@ pub fn run(job_file: &Path, opts: &RunOptions, on_resume: &dyn Fn(&Resumed)) -> 
     }
     let out = p.job.output().to_path_buf();
     let (plan, label) = match opts.shard {
-        Some(s) => (shard::plan_of(&p.plan, s).0, format!("{} shard {s}", p.job.job.name)),
+        Some(s) => {
+            shard::check_count(s.count, &p.plan).map_err(|m| Error::Invalid(format!("--shard {s}: {m}")))?;
+            (shard::plan_of(&p.plan, s).0, format!("{} shard {s}", p.job.job.name))
+        }
         None => (p.plan.clone(), p.job.job.name.clone()),
     };
     let parts = checkpoint::folder(&out, opts.shard);

@@ -16,8 +16,8 @@ mod validate;
 pub use inputs::{Inputs, inputs_of_records, load_inputs, read_inputs, read_records};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-pub use validate::{check_band, check_k, check_sampling_period};
-use validate::{resolve_validation, validate};
+use validate::{check_as_run, resolve_validation, validate};
+pub use validate::{check_band, check_k, check_order, check_sampling_period, check_solver};
 
 /// Largest number of Huber cells a job may ask for.
 pub const MAX_CELLS: usize = 200_000;
@@ -416,8 +416,8 @@ pub fn load(path: &Path) -> Result<ValidJob> {
 }
 
 /// Read back the job a run wrote ([`ValidJob::write_as_run`]: `job.json` of an output or a
-/// checkpoint folder), for `oesweep merge` and the report: the same [`Job`] type, already
-/// normalised, so nothing is checked again but its shape. Files of versions before the
+/// checkpoint folder), for `oesweep merge`, `export` and the report: the same [`Job`] type,
+/// checked by the job file's rules but for the files ([`validate::check_as_run`]). Files of versions before the
 /// `offset`, `initial_state` and `spectrum` fields ran the paper's model: absent, they read as
 /// "none", "zero" and "welch". Relative data paths (a hand-made file) are taken from `path`'s
 /// folder.
@@ -436,9 +436,9 @@ pub fn read_as_run(path: &Path) -> Result<(ValidJob, Option<String>)> {
     for spec in job.data.specs.iter_mut().chain(job.validation.iter_mut().flat_map(|v| v.specs.iter_mut())) {
         spec.path = resolve(&spec.path);
     }
-    if job.data.first().ts.is_none_or(|ts| check_sampling_period(ts).is_err()) {
-        return Err(Error::input(path, "field 'data.ts': missing or not a positive number"));
-    }
+    // Edited by hand or not, the file is input: the job file's rules, so that an order range
+    // [2, 1] or a k count of 1e15 is this error rather than a panic or an abort further on.
+    check_as_run(&mut job).map_err(|(f, m)| Error::input(path, data::one_line(&format!("field '{f}': {m}"))))?;
     Ok((ValidJob::of_normalised(path, job), version))
 }
 
