@@ -156,7 +156,7 @@ impl RunOptions {
         let every = self.checkpoint_every;
         if !(every.is_finite() && every > 0.0 && every <= checkpoint::MAX_BATCH_SECONDS) {
             return Err(Error::Invalid(format!(
-                "--checkpoint-every must be a positive number of seconds up to {} (a week), got {every}",
+                "--checkpoint-every must be a positive number of seconds up to {:e}, got {every}",
                 checkpoint::MAX_BATCH_SECONDS
             )));
         }
@@ -416,7 +416,7 @@ fn write_results(out: &Path, job: &ValidJob, rows: &[CellRow], inputs: Option<&I
     // A report of the previous table would describe models this table may not have.
     crate::report::remove_report(out);
     export::parquet::write_cells(&out.join(export::CELLS_FILE), rows)?;
-    export::json::write_json(&out.join(export::SELECTION_FILE), &selection)?;
+    export::json::write_json(&out.join(export::SELECTION_FILE), &export::json::Versioned::new(&selection))?;
     job.write_as_run(&out.join(export::JOB_FILE))?;
     Ok(selection)
 }

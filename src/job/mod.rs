@@ -322,6 +322,7 @@ pub struct ValidJob {
 /// `job.json` of a run: the normalised job and the program that ran it.
 #[derive(Serialize)]
 struct JobAsRun<'a> {
+    format_version: u32,
     oesweep_version: &'static str,
     #[serde(flatten)]
     job: &'a Job,
@@ -346,7 +347,14 @@ impl ValidJob {
     /// Write the job as run (`job.json` of an output or a checkpoint folder), for
     /// [`read_as_run`].
     pub fn write_as_run(&self, path: &Path) -> Result<()> {
-        crate::export::json::write_json(path, &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job: &self.job })
+        crate::export::json::write_json(
+            path,
+            &JobAsRun {
+                format_version: crate::export::FORMAT_VERSION,
+                oesweep_version: env!("CARGO_PKG_VERSION"),
+                job: &self.job,
+            },
+        )
     }
 
     /// The largest orders and delay of the grid: the records must be long enough for them.
@@ -426,6 +434,7 @@ pub fn read_as_run(path: &Path) -> Result<(ValidJob, Option<String>)> {
     let bad = |e: String| Error::input(path, format!("not the job.json `oesweep run` writes: {}", data::one_line(&e)));
     let mut v: serde_json::Value = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
     let obj = v.as_object_mut().ok_or_else(|| bad("not a JSON object".into()))?;
+    crate::export::json::take_format(obj).map_err(|m| Error::input(path, m))?;
     let version = obj.remove("oesweep_version").and_then(|v| v.as_str().map(str::to_string));
     for (field, paper) in [("offset", "none"), ("initial_state", "zero"), ("spectrum", "welch")] {
         obj.entry(field).or_insert_with(|| paper.into());

@@ -376,7 +376,8 @@ mod tests {
     fn options_are_checked() {
         let sys = read_system(&piezo_path()).unwrap();
         let cases: Vec<(SimOptions, &str)> = vec![
-            (SimOptions { n: 0, ..opts(1) }, "at least 1"),
+            (SimOptions { n: 0, ..opts(1) }, "between 1 and"),
+            (SimOptions { n: MAX_SAMPLES + 1, ..opts(1) }, "between 1 and 10000000"),
             (SimOptions { bits: 40, ..opts(1) }, "not supported"),
             (SimOptions { amplitude: 0.0, ..opts(1) }, "amplitude"),
             (SimOptions { noise_std: -1.0, ..opts(1) }, "noise standard deviation"),
