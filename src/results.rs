@@ -48,5 +48,28 @@ fn read_selection(path: &Path) -> Result<Selection> {
     let mut v: serde_json::Value = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
     let obj = v.as_object_mut().ok_or_else(|| bad("not a JSON object".into()))?;
     crate::export::json::take_format(obj).map_err(|m| Error::input(path, m))?;
-    serde_json::from_value(v).map_err(|e| bad(e.to_string()))
+    let sel: Selection = serde_json::from_value(v).map_err(|e| bad(e.to_string()))?;
+    // An edited covariance of the wrong size would index past the model's parameters.
+    for (name, pick) in [("m1", &sel.m1), ("m2", &sel.m2)] {
+        if let Some(p) = pick
+            && let Some(c) = &p.covariance
+            && !covariance_fits(c, &p.model.row)
+        {
+            let n = p.model.row.fit.b.len() + p.model.row.fit.f.len();
+            return Err(Error::input(
+                path,
+                format!(
+                    "field '{name}.covariance': {} values do not fit a model of {n} parameters and an offset",
+                    c.len()
+                ),
+            ));
+        }
+    }
+    Ok(sel)
+}
+
+/// A covariance (row-major) of the parameters `[b, f]` or `[b, f, offset]` of `row`.
+pub fn covariance_fits(c: &[f64], row: &CellRow) -> bool {
+    let n = row.fit.b.len() + row.fit.f.len();
+    c.len() == n * n || c.len() == (n + 1) * (n + 1)
 }

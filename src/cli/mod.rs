@@ -19,7 +19,19 @@ use print::{describe_grid, print_fit_summary, print_layout, print_picks, print_r
 /// and map it to the exit code (0 success, 1 failure of the work itself, 2 bad input).
 pub fn main() -> std::process::ExitCode {
     use clap::Parser;
-    match run(Cli::parse()) {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        // Help and version as clap prints them; a bad command line is one line and exit 2,
+        // like every other bad input (clap's usage and tips follow with --help).
+        Err(e) if !e.use_stderr() => e.exit(),
+        Err(e) => {
+            let text = e.to_string();
+            let first = text.lines().next().unwrap_or_default().trim_start_matches("error: ");
+            eprintln!("error: {first} (see oesweep --help)");
+            return std::process::ExitCode::from(2);
+        }
+    };
+    match run(cli) {
         Ok(code) => std::process::ExitCode::from(code),
         Err(e) => {
             // One line, whatever the paths contain: control characters are escaped.

@@ -141,10 +141,12 @@ impl FitRequest {
             "ftol" => bad("--ftol", m),
             other => bad(&format!("solver.{other}"), m),
         })?;
-        if self.bootstrap.is_some_and(|b| b < estimate::bootstrap::MIN_REPLICATES) {
+        use estimate::bootstrap::{MAX_REPLICATES, MIN_REPLICATES};
+        if let Some(b) = self.bootstrap
+            && !(MIN_REPLICATES..=MAX_REPLICATES).contains(&b)
+        {
             return Err(Error::Invalid(format!(
-                "--bootstrap must be at least {}",
-                estimate::bootstrap::MIN_REPLICATES
+                "--bootstrap must be between {MIN_REPLICATES} and {MAX_REPLICATES} replicates, got {b}"
             )));
         }
         Ok(())

@@ -41,6 +41,11 @@ pub const DEFAULT_REPLICATES: usize = 200;
 /// extremes or beyond.
 pub const MIN_REPLICATES: usize = 40;
 
+/// The most replicates allowed: 100 times the 1000 that Efron and Tibshirani advise for
+/// percentile intervals to 0.5 %, each a whole estimation; a typo such as `--bootstrap 1e12`
+/// must be an error, not a list of replicates that aborts the process when allocated.
+pub const MAX_REPLICATES: usize = 100_000;
+
 /// Seed when none is given.
 pub const DEFAULT_SEED: u64 = 1;
 
