@@ -59,7 +59,9 @@ pub fn read_cells(path: &Path) -> Result<Vec<CellRow>> {
 /// one is named, and extra columns (possibly of types this build cannot decode) are skipped.
 fn read_frame(file: File) -> std::result::Result<DataFrame, String> {
     let unreadable = |e: PolarsError| format!("not a readable Parquet file: {e}");
+    let len = file.metadata().map_err(|e| format!("cannot read: {e}"))?.len();
     let mut reader = ParquetReader::new(file);
+    crate::data::parquet::check_footer(&mut reader, len)?;
     let meta = reader.get_metadata().map_err(unreadable)?;
     let declared = meta.key_value_metadata().iter().flatten().find(|kv| kv.key == super::FORMAT_KEY);
     super::check_format(declared.map(|kv| kv.value.as_deref().unwrap_or(""))).map_err(|m| format!("metadata: {m}"))?;
