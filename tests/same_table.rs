@@ -21,7 +21,10 @@
 //! from other starts), the other strategies' numbers unchanged (their files gained the
 //! `fit_exp`/`fit_val_exp` columns of issue 28), the same picks. Issue 37 blessed selection.json again (the cells' files untouched): the edge
 //! warning looks one step beyond the grid and names RBIC's minimum there instead of "widen the
-//! grid", and `rule_why` says why the lead rule leads; every number and pick unchanged. Bless again only for a change that is meant to change the numbers, and
+//! grid", and `rule_why` says why the lead rule leads; every number and pick unchanged. Issue 38
+//! added `format_version` to selection.json and to cells.parquet's metadata: not blessed again
+//! (fields added since are not compared, and a file without the field reads as format 1).
+//! Bless again only for a change that is meant to change the numbers, and
 //! say so in the commit.
 //!
 //! Bit-for-bit holds on machines with the AVX2+FMA kernels the fixtures were made with (every
