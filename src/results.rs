@@ -35,12 +35,41 @@ pub fn read_results(folder: &Path) -> Result<Results> {
         ));
     }
     let rows = crate::export::parquet::read_cells(&folder.join(CELLS_FILE))?;
-    let selection: Selection = read_json(&folder.join(SELECTION_FILE))?;
+    let selection = read_selection(&folder.join(SELECTION_FILE))?;
     let (job, version) = crate::job::read_as_run(&folder.join(JOB_FILE))?;
     Ok(Results { folder: folder.to_path_buf(), rows, selection, job, version })
 }
 
-fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+/// selection.json, of a format this program reads ([`crate::export::check_format`]).
+fn read_selection(path: &Path) -> Result<Selection> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
-    serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not the file `oesweep run` writes: {e}")))
+    let bad =
+        |e: String| Error::input(path, format!("not the file `oesweep run` writes: {}", crate::data::one_line(&e)));
+    let mut v: serde_json::Value = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
+    let obj = v.as_object_mut().ok_or_else(|| bad("not a JSON object".into()))?;
+    crate::export::json::take_format(obj).map_err(|m| Error::input(path, m))?;
+    let sel: Selection = serde_json::from_value(v).map_err(|e| bad(e.to_string()))?;
+    // An edited covariance of the wrong size would index past the model's parameters.
+    for (name, pick) in [("m1", &sel.m1), ("m2", &sel.m2)] {
+        if let Some(p) = pick
+            && let Some(c) = &p.covariance
+            && !covariance_fits(c, &p.model.row)
+        {
+            let n = p.model.row.fit.b.len() + p.model.row.fit.f.len();
+            return Err(Error::input(
+                path,
+                format!(
+                    "field '{name}.covariance': {} values do not fit a model of {n} parameters and an offset",
+                    c.len()
+                ),
+            ));
+        }
+    }
+    Ok(sel)
+}
+
+/// A covariance (row-major) of the parameters `[b, f]` or `[b, f, offset]` of `row`.
+pub fn covariance_fits(c: &[f64], row: &CellRow) -> bool {
+    let n = row.fit.b.len() + row.fit.f.len();
+    c.len() == n * n || c.len() == (n + 1) * (n + 1)
 }

@@ -105,6 +105,20 @@ pub fn layout(plan: &Plan, count: usize) -> Vec<Vec<usize>> {
     shards
 }
 
+/// A number of shards for `plan`: at least 1, and at most one per Huber cell of the plan (a
+/// typo such as `--shards 1000000000000` must be an error, not a layout that allocates a list
+/// per shard and aborts). Returns what is wrong; the caller names the flag or folder.
+pub fn check_count(count: usize, plan: &Plan) -> std::result::Result<(), String> {
+    let cells = plan.n_cells().max(1);
+    if count == 0 {
+        Err("the number of shards must be at least 1".into())
+    } else if count > cells {
+        Err(format!("{count} shards for a job of {cells} cells: at most one shard per cell"))
+    } else {
+        Ok(())
+    }
+}
+
 /// The plan of one shard: the full plan restricted to the shard's pairs (k grid, delay and
 /// start unchanged), and the shard's pair indices into the full plan.
 pub fn plan_of(plan: &Plan, shard: Shard) -> (Plan, Vec<usize>) {

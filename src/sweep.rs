@@ -155,8 +155,13 @@ impl Outcome {
     }
 }
 
+/// Most worker threads a run may ask for (`--threads`): more than any machine oesweep runs on
+/// has cores, and each worker holds a workspace; `--threads 100000` made the process spend
+/// minutes creating threads or abort when the system refused them.
+pub const MAX_THREADS: usize = 1024;
+
 /// Run the cells of `plan` that `control.done` does not hold, on `threads` workers
-/// (0 = all cores).
+/// (0 = all cores; at most [`MAX_THREADS`], checked by the caller).
 pub fn run(plan: &Plan, ctx: &Context, threads: usize, progress: &Progress, control: Control) -> Outcome {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
     let t0 = Instant::now();

@@ -23,7 +23,9 @@
 //! warning looks one step beyond the grid and names RBIC's minimum there instead of "widen the
 //! grid", and `rule_why` says why the lead rule leads; every number and pick unchanged. Issue 38
 //! changed one text in each selection.json: messages print k to four significant digits ("at k =
-//! 0.2187", was 0.21867241478865565). Bless again only for a change that is meant to change the
+//! 0.2187", was 0.21867241478865565); it also added `format_version` to selection.json and to
+//! cells.parquet's metadata, not blessed (fields added since are not compared, and a file without
+//! the field reads as format 1). Bless again only for a change that is meant to change the
 //! numbers, and say so in the commit.
 //!
 //! Bit-for-bit holds on machines with the AVX2+FMA kernels the fixtures were made with (every

@@ -91,6 +91,10 @@ pub use crate::export::JOB_FILE;
 pub const BATCH_ROWS: usize = 500;
 /// A part is written at the latest this many seconds after its first row finished.
 pub const BATCH_SECONDS: f64 = 3.0;
+/// Largest `--checkpoint-every`: about 32 years, which already means "by row count only" (a
+/// part every [`BATCH_ROWS`] rows, the tests' way of saying never by time); far above it the
+/// interval overflows the clock's arithmetic (`1e20` seconds panicked).
+pub const MAX_BATCH_SECONDS: f64 = 1e9;
 /// Layout version of the parts folder; a different one is never resumed.
 pub(crate) const FORMAT: u32 = 1;
 

@@ -195,6 +195,13 @@ pub fn gather(out: &Path) -> Result<Gathered> {
         return Err(Error::input(&job_path, "is not the job of the manifest next to it"));
     }
     let plan = Plan::from_job(&job);
+    // The merge lays the job out in N shards to name the ones to rerun: a folder renamed to
+    // an absurd N must be refused, not laid out.
+    for (dir, shard) in &dirs {
+        if let Some(s) = shard {
+            crate::shard::check_count(s.count, &plan).map_err(|m| Error::input(dir, m))?;
+        }
+    }
     let mut found: std::collections::HashMap<RowKey, (CellRow, usize)> = std::collections::HashMap::new();
     let (mut folders, mut duplicates) = (Vec::new(), 0);
     for (dir, shard) in dirs {

@@ -216,6 +216,9 @@ fn run_simulate(a: &SimulateArgs) -> Result<u8> {
 
 fn run_plan(a: &PlanArgs) -> Result<u8> {
     let p = engine::prepare(&a.job)?;
+    if let Some(n) = a.shards {
+        shard::check_count(n, &p.plan).map_err(|m| Error::Invalid(format!("--shards {n}: {m}")))?;
+    }
     let j = &p.job;
     println!("job        {} ({})", j.job.name, j.file.display());
     let more = |n: usize| if n > 1 { format!(" and {} more experiments", n - 1) } else { String::new() };
@@ -244,9 +247,6 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
         eprintln!("warning: {w}");
     }
     if let Some(n) = a.shards {
-        if n == 0 {
-            return Err(Error::Invalid("--shards must be at least 1".into()));
-        }
         print_layout(&p.plan, n);
     }
     Ok(0)

@@ -23,7 +23,7 @@
 
 pub mod levels;
 mod mat;
-mod parquet;
+pub(crate) mod parquet;
 mod text;
 
 pub use levels::{Levels, Offset};

@@ -11,7 +11,45 @@ use crate::error::Result;
 
 fn open(path: &Path) -> Result<ParquetReader<File>> {
     let file = File::open(path).map_err(|e| input_error(path, format!("cannot open file: {e}")))?;
-    Ok(ParquetReader::new(file))
+    let len = file.metadata().map_err(|e| input_error(path, format!("cannot open file: {e}")))?.len();
+    let mut reader = ParquetReader::new(file);
+    check_footer(&mut reader, len).map_err(|m| input_error(path, m))?;
+    Ok(reader)
+}
+
+/// Most values a column chunk of a Parquet file may declare (and most rows a file may hold):
+/// 2^27, a gigabyte per f64 column, far beyond any record oesweep reads or table it writes
+/// ([`crate::job::MAX_CELLS`] rows). polars reserves memory for the footer's counts before it
+/// decodes a value, and an allocation that fails aborts the process, which no `catch_unwind`
+/// stops: a damaged count must be refused before polars sees it.
+pub(crate) const MAX_VALUES: u64 = 1 << 27;
+
+/// The counts and sizes of a Parquet file's footer (rows, values per column chunk, byte
+/// ranges) checked against [`MAX_VALUES`] and the file's length `len`. Returns what is wrong.
+pub(crate) fn check_footer(reader: &mut ParquetReader<File>, len: u64) -> std::result::Result<(), String> {
+    let meta = reader.get_metadata().map_err(|e| format!("not a readable Parquet file: {e}"))?;
+    let corrupt = |what: String| format!("not a readable Parquet file: its footer declares {what} (corrupt file?)");
+    if meta.num_rows as u64 > MAX_VALUES {
+        return Err(corrupt(format!("{} rows, more than {MAX_VALUES}", meta.num_rows)));
+    }
+    let mut rows: u64 = 0;
+    for (g, group) in meta.row_groups.iter().enumerate() {
+        rows = rows.saturating_add(group.num_rows() as u64);
+        for c in group.parquet_columns() {
+            let values = c.num_values();
+            if !(0..=MAX_VALUES as i64).contains(&values) {
+                return Err(corrupt(format!("{values} values in a column of row group {g}")));
+            }
+            let range = c.byte_range();
+            if c.compressed_size() < 0 || range.start > range.end || range.end > len {
+                return Err(corrupt(format!("a column of row group {g} beyond the file's {len} bytes")));
+            }
+        }
+    }
+    if rows != meta.num_rows as u64 {
+        return Err(corrupt(format!("{} rows but row groups of {rows}", meta.num_rows)));
+    }
+    Ok(())
 }
 
 fn schema_names(path: &Path, reader: &mut ParquetReader<File>) -> Result<Vec<String>> {

@@ -60,6 +60,9 @@ pub fn export_model(folder: &Path, spec: Option<&PickSpec>) -> Result<(ModelOut,
     let res = read_results(folder)?;
     let spec = spec.cloned().unwrap_or(PickSpec::Rule(res.selection.rule));
     let (row, label, stored) = chosen(&res, &spec)?;
+    // The pick's covariance belongs to the pick's row of selection.json, which an edit could
+    // have moved away from the table's.
+    let stored = stored.filter(|c| crate::results::covariance_fits(c, &row));
     let mut notes = Vec::new();
     let covariance = match stored {
         Some(c) => Some(c),

@@ -161,10 +161,18 @@ impl Default for RunOptions {
 
 impl RunOptions {
     fn check(&self) -> Result<()> {
-        if !(self.checkpoint_every.is_finite() && self.checkpoint_every > 0.0) {
+        let every = self.checkpoint_every;
+        if !(every.is_finite() && every > 0.0 && every <= checkpoint::MAX_BATCH_SECONDS) {
             return Err(Error::Invalid(format!(
-                "--checkpoint-every must be a positive number of seconds, got {}",
-                self.checkpoint_every
+                "--checkpoint-every must be a positive number of seconds up to {:e}, got {every}",
+                checkpoint::MAX_BATCH_SECONDS
+            )));
+        }
+        if self.threads > sweep::MAX_THREADS {
+            return Err(Error::Invalid(format!(
+                "--threads must be at most {} (0: all cores), got {}",
+                sweep::MAX_THREADS,
+                self.threads
             )));
         }
         if self.shard.is_some() && self.report {
@@ -278,7 +286,10 @@ fn run_loaded(
     }
     let out = p.job.output().to_path_buf();
     let (plan, label) = match opts.shard {
-        Some(s) => (shard::plan_of(&p.plan, s).0, format!("{} shard {s}", p.job.job.name)),
+        Some(s) => {
+            shard::check_count(s.count, &p.plan).map_err(|m| Error::Invalid(format!("--shard {s}: {m}")))?;
+            (shard::plan_of(&p.plan, s).0, format!("{} shard {s}", p.job.job.name))
+        }
         None => (p.plan.clone(), p.job.job.name.clone()),
     };
     let parts = checkpoint::folder(&out, opts.shard);
@@ -445,7 +456,7 @@ fn write_results(
     // A report of the previous table would describe models this table may not have.
     crate::report::remove_report(out);
     export::parquet::write_cells(&out.join(export::CELLS_FILE), rows)?;
-    export::json::write_json(&out.join(export::SELECTION_FILE), &selection)?;
+    export::json::write_json(&out.join(export::SELECTION_FILE), &export::json::Versioned::new(&selection))?;
     job.write_as_run(&out.join(export::JOB_FILE))?;
     Ok(selection)
 }

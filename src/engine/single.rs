@@ -115,12 +115,12 @@ impl FitRequest {
         }
     }
 
-    /// The job file's rules, named as the command line names the settings.
+    /// The job file's rules ([`job::check_order`], [`job::check_solver`], ...), named as the
+    /// command line names the settings.
     fn check(&self) -> Result<()> {
         let bad = |flag: &str, msg: String| Error::Invalid(format!("{flag} {msg}"));
-        if self.nb == 0 {
-            return Err(Error::Invalid("--nb must be at least 1".into()));
-        }
+        job::check_order(self.nb, 1).map_err(|m| bad("--nb", m))?;
+        job::check_order(self.nf, 0).map_err(|m| bad("--nf", m))?;
         for (flag, rows) in [("--rows", self.rows), ("--val-rows", self.val_rows)] {
             if let Some(r) = rows {
                 data::check_rows(r).map_err(|m| bad(flag, m))?;
@@ -136,14 +136,13 @@ impl FitRequest {
             };
             job::check_band(lo, hi, ts).map_err(|m| bad(&format!("--band {lo},{hi}:"), m))?;
         }
-        if self.solver.max_iterations == 0 {
-            return Err(Error::Invalid("--max-iterations must be at least 1".into()));
-        }
-        if self.bootstrap.is_some_and(|b| b < estimate::bootstrap::MIN_REPLICATES) {
-            return Err(Error::Invalid(format!(
-                "--bootstrap must be at least {}",
-                estimate::bootstrap::MIN_REPLICATES
-            )));
+        job::check_solver(&self.solver).map_err(|(field, m)| match field {
+            "max_iterations" => bad("--max-iterations", m),
+            "ftol" => bad("--ftol", m),
+            other => bad(&format!("solver.{other}"), m),
+        })?;
+        if let Some(b) = self.bootstrap {
+            estimate::bootstrap::check_replicates(b).map_err(|m| Error::Invalid(format!("--bootstrap {m}")))?;
         }
         Ok(())
     }

@@ -43,6 +43,20 @@ pub const DEFAULT_REPLICATES: usize = 200;
 /// extremes or beyond.
 pub const MIN_REPLICATES: usize = 40;
 
+/// The most replicates allowed: 100 times the 1000 that Efron and Tibshirani advise for
+/// percentile intervals to 0.5 %, each a whole estimation; a typo such as `--bootstrap 1e12`
+/// must be an error, not a list of replicates that aborts the process when allocated.
+pub const MAX_REPLICATES: usize = 100_000;
+
+/// The rule for B, of `fit --bootstrap` and the job's `uncertainty` alike.
+pub fn check_replicates(b: usize) -> std::result::Result<(), String> {
+    if (MIN_REPLICATES..=MAX_REPLICATES).contains(&b) {
+        Ok(())
+    } else {
+        Err(format!("must be from {MIN_REPLICATES} to {MAX_REPLICATES} replicates, got {b}"))
+    }
+}
+
 /// Seed when none is given.
 pub const DEFAULT_SEED: u64 = 1;
 

@@ -17,6 +17,30 @@ pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
     })
 }
 
+/// A result document with its format version first ([`super::FORMAT_VERSION`]).
+#[derive(Serialize)]
+pub struct Versioned<'a, T: Serialize> {
+    pub format_version: u32,
+    #[serde(flatten)]
+    pub doc: &'a T,
+}
+
+impl<'a, T: Serialize> Versioned<'a, T> {
+    pub fn new(doc: &'a T) -> Self {
+        Versioned { format_version: super::FORMAT_VERSION, doc }
+    }
+}
+
+/// Takes the format version out of a result document read as JSON and checks it
+/// ([`super::check_format`]); the rest is the document.
+pub fn take_format(obj: &mut serde_json::Map<String, serde_json::Value>) -> std::result::Result<(), String> {
+    let declared = obj.remove(super::FORMAT_KEY).map(|v| match v {
+        serde_json::Value::String(s) => s,
+        other => other.to_string(),
+    });
+    super::check_format(declared.as_deref())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -22,6 +22,28 @@ pub const RESULT_FILES: [&str; 3] = [CELLS_FILE, SELECTION_FILE, JOB_FILE];
 /// The review page ([`crate::report`]).
 pub const REPORT_FILE: &str = "report.html";
 
+/// Layout version of the result files, kept as `format_version` in selection.json, job.json
+/// and the key-value metadata of cells.parquet (and of a checkpoint's parts). Raised when a
+/// reader of the previous layout would misread the new one; a file of a newer format is
+/// refused ([`check_format`]), one without the field (before 0.1.0 had it) reads as format 1.
+pub const FORMAT_VERSION: u32 = 1;
+/// The key of [`FORMAT_VERSION`] in every result file.
+pub const FORMAT_KEY: &str = "format_version";
+
+/// The format version a result file declares (`None`: written before the field existed) must
+/// be one this program reads. Returns what is wrong; the caller names the file.
+pub fn check_format(declared: Option<&str>) -> std::result::Result<(), String> {
+    let Some(text) = declared else { return Ok(()) };
+    match text.trim().parse::<u64>() {
+        Ok(v) if (1..=FORMAT_VERSION as u64).contains(&v) => Ok(()),
+        Ok(v) if v > FORMAT_VERSION as u64 => Err(format!(
+            "{FORMAT_KEY} {v} is newer than this oesweep {} reads (up to {FORMAT_VERSION}): read it with a newer oesweep",
+            env!("CARGO_PKG_VERSION")
+        )),
+        _ => Err(format!("{FORMAT_KEY} '{}' is not a format version of oesweep", crate::data::one_line(text))),
+    }
+}
+
 use crate::error::{Error, Result};
 use std::ffi::OsString;
 use std::fs::File;

@@ -24,8 +24,10 @@ pub fn write_cells(path: &Path, rows: &[CellRow]) -> Result<()> {
     let mut df = to_frame(rows).map_err(|e| Error::output(path, format!("cannot build the table: {e}")))?;
     super::write_atomically(path, |file| {
         let mut w = BufWriter::new(file);
+        let version = vec![(super::FORMAT_KEY.to_string(), super::FORMAT_VERSION.to_string())];
         ParquetWriter::new(&mut w)
             .with_compression(ParquetCompression::Zstd(None))
+            .with_key_value_metadata(Some(KeyValueMetadata::from_static(version)))
             .finish(&mut df)
             .map_err(|e| format!("cannot write Parquet: {e}"))?;
         w.flush().map_err(|e| format!("cannot write Parquet: {e}"))
@@ -57,7 +59,12 @@ pub fn read_cells(path: &Path) -> Result<Vec<CellRow>> {
 /// one is named, and extra columns (possibly of types this build cannot decode) are skipped.
 fn read_frame(file: File) -> std::result::Result<DataFrame, String> {
     let unreadable = |e: PolarsError| format!("not a readable Parquet file: {e}");
+    let len = file.metadata().map_err(|e| format!("cannot read: {e}"))?.len();
     let mut reader = ParquetReader::new(file);
+    crate::data::parquet::check_footer(&mut reader, len)?;
+    let meta = reader.get_metadata().map_err(unreadable)?;
+    let declared = meta.key_value_metadata().iter().flatten().find(|kv| kv.key == super::FORMAT_KEY);
+    super::check_format(declared.map(|kv| kv.value.as_deref().unwrap_or(""))).map_err(|m| format!("metadata: {m}"))?;
     let schema = reader.schema().map_err(unreadable)?;
     if let Some(c) = COLUMNS.iter().find(|c| !c.optional && !schema.contains(c.name)) {
         return Err(format!("missing column `{}` (not a table written by oesweep)", c.name));

@@ -17,8 +17,8 @@ pub use crate::reduce::SelectionSettings;
 pub use inputs::{Inputs, inputs_of_records, load_inputs, read_inputs, read_records};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-pub use validate::{check_band, check_k, check_sampling_period};
-use validate::{resolve_validation, validate};
+use validate::{check_as_run, resolve_validation, validate};
+pub use validate::{check_band, check_k, check_order, check_sampling_period, check_solver};
 
 /// Largest number of Huber cells a job may ask for.
 pub const MAX_CELLS: usize = 200_000;
@@ -273,10 +273,6 @@ impl Default for Uncertainty {
 }
 
 impl Uncertainty {
-    /// Most replicates a job may ask for: each is a whole estimation of the pick (B = 200 of
-    /// an OE(12,12) at N = 5000 took 20-30 s, docs/PERFORMANCE.md), so 10 000 is hours per pick.
-    pub const MAX_REPLICATES: usize = 10_000;
-
     pub fn is_local(&self) -> bool {
         self.method == UncertaintyMethod::Local
     }
@@ -385,6 +381,7 @@ pub struct ValidJob {
 /// `job.json` of a run: the normalised job and the program that ran it.
 #[derive(Serialize)]
 struct JobAsRun<'a> {
+    format_version: u32,
     oesweep_version: &'static str,
     #[serde(flatten)]
     job: &'a Job,
@@ -409,7 +406,14 @@ impl ValidJob {
     /// Write the job as run (`job.json` of an output or a checkpoint folder), for
     /// [`read_as_run`].
     pub fn write_as_run(&self, path: &Path) -> Result<()> {
-        crate::export::json::write_json(path, &JobAsRun { oesweep_version: env!("CARGO_PKG_VERSION"), job: &self.job })
+        crate::export::json::write_json(
+            path,
+            &JobAsRun {
+                format_version: crate::export::FORMAT_VERSION,
+                oesweep_version: env!("CARGO_PKG_VERSION"),
+                job: &self.job,
+            },
+        )
     }
 
     /// The largest orders and delay of the grid: the records must be long enough for them.
@@ -486,8 +490,8 @@ pub fn from_text(path: &Path, text: &str) -> Result<ValidJob> {
 }
 
 /// Read back the job a run wrote ([`ValidJob::write_as_run`]: `job.json` of an output or a
-/// checkpoint folder), for `oesweep merge` and the report: the same [`Job`] type, already
-/// normalised, so nothing is checked again but its shape. Files of versions before the
+/// checkpoint folder), for `oesweep merge`, `export` and the report: the same [`Job`] type,
+/// checked by the job file's rules but for the files ([`validate::check_as_run`]). Files of versions before the
 /// `offset`, `initial_state` and `spectrum` fields ran the paper's model: absent, they read as
 /// "none", "zero" and "welch". Relative data paths (a hand-made file) are taken from `path`'s
 /// folder.
@@ -496,6 +500,7 @@ pub fn read_as_run(path: &Path) -> Result<(ValidJob, Option<String>)> {
     let bad = |e: String| Error::input(path, format!("not the job.json `oesweep run` writes: {}", data::one_line(&e)));
     let mut v: serde_json::Value = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
     let obj = v.as_object_mut().ok_or_else(|| bad("not a JSON object".into()))?;
+    crate::export::json::take_format(obj).map_err(|m| Error::input(path, m))?;
     let version = obj.remove("oesweep_version").and_then(|v| v.as_str().map(str::to_string));
     for (field, paper) in [("offset", "none"), ("initial_state", "zero"), ("spectrum", "welch")] {
         obj.entry(field).or_insert_with(|| paper.into());
@@ -506,9 +511,9 @@ pub fn read_as_run(path: &Path) -> Result<(ValidJob, Option<String>)> {
     for spec in job.data.specs.iter_mut().chain(job.validation.iter_mut().flat_map(|v| v.specs.iter_mut())) {
         spec.path = resolve(&spec.path);
     }
-    if job.data.first().ts.is_none_or(|ts| check_sampling_period(ts).is_err()) {
-        return Err(Error::input(path, "field 'data.ts': missing or not a positive number"));
-    }
+    // Edited by hand or not, the file is input: the job file's rules, so that an order range
+    // [2, 1] or a k count of 1e15 is this error rather than a panic or an abort further on.
+    check_as_run(&mut job).map_err(|(f, m)| Error::input(path, data::one_line(&format!("field '{f}': {m}"))))?;
     Ok((ValidJob::of_normalised(path, job), version))
 }
 

@@ -5,6 +5,7 @@
 use super::{DEFAULT_DELAY, DataSpec, Job, KGrid, MAX_CELLS, MAX_ORDER, MIN_EXPLORE_ROWS, k_values};
 use crate::data::{self, ColumnRef, Delimiter};
 use crate::error::{Error, Result};
+use crate::estimate::SolverOptions;
 use std::path::{Path, PathBuf};
 
 /// Rules that the job file and `oesweep fit` share. Each returns what is wrong; the caller
@@ -16,6 +17,27 @@ pub fn check_sampling_period(ts: f64) -> std::result::Result<(), String> {
 /// A tuning constant k (see [`check_sampling_period`]).
 pub fn check_k(k: f64) -> std::result::Result<(), String> {
     if k.is_finite() && k > 0.0 { Ok(()) } else { Err(format!("must be positive, got {k}")) }
+}
+
+/// An order: nB (`min` 1) or nF (`min` 0), at most [`MAX_ORDER`] (see [`check_sampling_period`]).
+pub fn check_order(n: usize, min: usize) -> std::result::Result<(), String> {
+    if n < min {
+        Err(format!("must be at least {min}, got {n}"))
+    } else if n > MAX_ORDER {
+        Err(format!("orders above {MAX_ORDER} are not supported, got {n}"))
+    } else {
+        Ok(())
+    }
+}
+
+/// The sampling period `ts` of a record beside the first record's `first` (every experiment is
+/// sampled alike; the tolerance absorbs decimal rounding).
+fn check_same_ts(ts: f64, first: f64, whose: &str) -> std::result::Result<(), String> {
+    check_sampling_period(ts)?;
+    if (ts - first).abs() > 1e-9 * first {
+        return Err(format!("sampling period {ts} s differs from the {whose} {first} s"));
+    }
+    Ok(())
 }
 
 /// A frequency band [lo, hi] in Hz at sampling period `ts` (see [`check_sampling_period`]).
@@ -82,9 +104,6 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
     // Absolute base: job.json in the output folder must locate the data from anywhere.
     let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let base = parent.canonicalize().unwrap_or_else(|_| parent.to_path_buf());
-    if job.name.trim().is_empty() {
-        return Err(bad("name", "must not be empty".into()));
-    }
     // The first record as a job of one record has it; the others of a list default to the
     // first's columns, layout and sampling period (every experiment measures the same signals).
     let names: Vec<String> = job.data.named("data").map(|(n, _)| n).collect();
@@ -118,14 +137,7 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
                 return Err(bad(&format!("{name}.ts"), "missing: the sampling period in seconds is required".into()));
             }
             (Some(ts), Some(first)) => {
-                let ets = first.ts.unwrap();
-                check_sampling_period(ts).map_err(|m| bad(&format!("{name}.ts"), m))?;
-                if (ts - ets).abs() > 1e-9 * ets {
-                    return Err(bad(
-                        &format!("{name}.ts"),
-                        format!("sampling period {ts} s differs from the first record's {ets} s"),
-                    ));
-                }
+                check_same_ts(ts, first.ts.unwrap(), "first record's").map_err(|m| bad(&format!("{name}.ts"), m))?
             }
             (None, Some(first)) => spec.ts = first.ts,
         }
@@ -156,49 +168,54 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
         v.header.get_or_insert(data0.header.unwrap_or_default());
         check_data_spec(v, vname).map_err(|(f, m)| bad(&f, m))?;
         if let Some(ts) = v.ts {
-            let ets = data0.ts.unwrap();
-            check_sampling_period(ts).map_err(|m| bad(&format!("{vname}.ts"), m))?;
-            if (ts - ets).abs() > 1e-9 * ets {
-                return Err(bad(
-                    &format!("{vname}.ts"),
-                    format!("sampling period {ts} s differs from the estimation record's {ets} s"),
-                ));
-            }
+            check_same_ts(ts, data0.ts.unwrap(), "estimation record's").map_err(|m| bad(&format!("{vname}.ts"), m))?;
         }
+    }
+    check_grid_and_settings(&mut job).map_err(|(f, m)| bad(&f, m))?;
+    job.output = resolve(&base, &job.output);
+    check_output_folder(&job.output).map_err(|msg| bad("output", msg))?;
+    Ok(job)
+}
+
+/// The name, grid and settings of a job (orders, delays, k, band, solver, selection): the
+/// rules that need no file, shared by [`validate`] and [`check_as_run`]. Expands k into a
+/// list. Returns (field, message).
+fn check_grid_and_settings(job: &mut Job) -> std::result::Result<(), (String, String)> {
+    let err = |field: &str, msg: String| (field.to_string(), msg);
+    if job.name.trim().is_empty() {
+        return Err(err("name", "must not be empty".into()));
     }
     let [b0, b1] = job.grid.nb;
     let [f0, f1] = job.grid.nf;
     if b0 < 1 || b0 > b1 {
-        return Err(bad("grid.nb", format!("[{b0}, {b1}] is not a range [from, to] with 1 <= from <= to")));
+        return Err(err("grid.nb", format!("[{b0}, {b1}] is not a range [from, to] with 1 <= from <= to")));
     }
     if f0 > f1 {
-        return Err(bad("grid.nf", format!("[{f0}, {f1}] is not a range [from, to] with from <= to")));
+        return Err(err("grid.nf", format!("[{f0}, {f1}] is not a range [from, to] with from <= to")));
     }
-    if b1 > MAX_ORDER || f1 > MAX_ORDER {
-        return Err(bad("grid", format!("orders above {MAX_ORDER} are not supported")));
-    }
+    check_order(b1.max(f1), 0).map_err(|m| err("grid", m))?;
     let [d0, d1] = match (job.grid.delay, job.delay) {
         (Some(_), Some(_)) => {
-            return Err(bad("delay", "give either 'delay' or 'grid.delay', not both".into()));
+            return Err(err("delay", "give either 'delay' or 'grid.delay', not both".into()));
         }
         (Some(range), None) => range,
         (None, Some(d)) => [d, d],
         (None, None) => [DEFAULT_DELAY; 2],
     };
     if d0 > d1 {
-        return Err(bad("grid.delay", format!("[{d0}, {d1}] is not a range [from, to] with from <= to")));
+        return Err(err("grid.delay", format!("[{d0}, {d1}] is not a range [from, to] with from <= to")));
     }
     job.grid.delay = Some([d0, d1]);
     job.delay = None;
     if let KGrid::Range(r) = &job.grid.k {
         if r.count == 0 {
-            return Err(bad("grid.k.count", "must be at least 1".into()));
+            return Err(err("grid.k.count", "must be at least 1".into()));
         }
         if !(r.from.is_finite() && r.to.is_finite() && r.from > 0.0 && r.to >= r.from) {
-            return Err(bad("grid.k", format!("from {} to {}: need 0 < from <= to", r.from, r.to)));
+            return Err(err("grid.k", format!("from {} to {}: need 0 < from <= to", r.from, r.to)));
         }
         if r.count > 1 && r.from == r.to {
-            return Err(bad("grid.k", format!("from == to == {} with count {}: the range is empty", r.from, r.count)));
+            return Err(err("grid.k", format!("from == to == {} with count {}: the range is empty", r.from, r.count)));
         }
     }
     // The cell cap is checked before the k grid is expanded: a typo such as a count of 1e15
@@ -209,32 +226,68 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
     };
     let cells = ((b1 - b0 + 1) * (f1 - f0 + 1)) as u128 * ((d1 - d0) as u128 + 1) * n_k as u128;
     if cells > MAX_CELLS as u128 {
-        return Err(bad("grid", format!("{cells} cells is above the limit of {MAX_CELLS}")));
+        return Err(err("grid", format!("{cells} cells is above the limit of {MAX_CELLS}")));
     }
     let ks = k_values(&job.grid.k);
     if ks.is_empty() {
-        return Err(bad("grid.k", "the list of k values is empty".into()));
+        return Err(err("grid.k", "the list of k values is empty".into()));
     }
     if let Some(m) = ks.iter().find_map(|&k| check_k(k).err()) {
-        return Err(bad("grid.k", format!("k {m}")));
+        return Err(err("grid.k", format!("k {m}")));
     }
     // Duplicates anywhere in the list (not only neighbours) would give two cells with the
     // same (nB, nF, k) and two identical rows in the table.
     let mut sorted = ks.clone();
     sorted.sort_by(f64::total_cmp);
     if let Some(w) = sorted.windows(2).find(|w| w[0] == w[1]) {
-        return Err(bad("grid.k", format!("k = {} appears twice", w[0])));
+        return Err(err("grid.k", format!("k = {} appears twice", w[0])));
     }
     if let Some([lo, hi]) = job.band_hz {
-        check_band(lo, hi, job.data.first().ts.unwrap()).map_err(|m| bad("band_hz", format!("[{lo}, {hi}]: {m}")))?;
+        check_band(lo, hi, job.data.first().ts.unwrap()).map_err(|m| err("band_hz", format!("[{lo}, {hi}]: {m}")))?;
     }
-    let s = &job.solver;
+    check_solver(&job.solver).map_err(|(f, m)| (format!("solver.{f}"), m))?;
+    let sel = &job.selection;
+    if !(sel.min_tolerance.is_finite() && sel.min_tolerance >= 0.0) {
+        return Err(err("selection.min_tolerance", format!("must be >= 0, got {}", sel.min_tolerance)));
+    }
+    if !(sel.fit_tolerance.is_finite() && sel.fit_tolerance >= 0.0) {
+        return Err(err("selection.fit_tolerance", format!("must be >= 0, got {}", sel.fit_tolerance)));
+    }
+    if !job.uncertainty.is_local() {
+        crate::estimate::bootstrap::check_replicates(job.uncertainty.replicates)
+            .map_err(|m| err("uncertainty.replicates", m))?;
+    }
+    job.grid.k = KGrid::List(ks);
+    Ok(())
+}
+
+/// The rules of a job a run wrote (`job.json` of a results or checkpoint folder, which anyone
+/// may have edited since): every field as [`validate`] checks it, but not the files, which
+/// are checked when (and if) they are read. Returns (field, message).
+pub(super) fn check_as_run(job: &mut Job) -> std::result::Result<(), (String, String)> {
+    let ts_field = |name: &str, m: String| (format!("{name}.ts"), m);
+    let Some(ts0) = job.data.first().ts else {
+        return Err(("data.ts".into(), "missing: the sampling period in seconds is required".into()));
+    };
+    check_sampling_period(ts0).map_err(|m| ts_field("data", m))?;
+    let named = job.data.named("data").chain(job.validation.iter().flat_map(|v| v.named("validation")));
+    for (name, spec) in named {
+        check_data_spec(spec, &name)?;
+        if let Some(ts) = spec.ts {
+            check_same_ts(ts, ts0, "first record's").map_err(|m| ts_field(&name, m))?;
+        }
+    }
+    check_grid_and_settings(job)
+}
+
+/// The settings of the solver (`solver.FIELD` in a job, flags of `oesweep fit`): (field, message).
+pub fn check_solver(s: &SolverOptions) -> std::result::Result<(), (&'static str, String)> {
     if s.max_iterations == 0 {
-        return Err(bad("solver.max_iterations", "must be at least 1".into()));
+        return Err(("max_iterations", "must be at least 1".into()));
     }
     if s.explore_rows != 0 && s.explore_rows < MIN_EXPLORE_ROWS {
-        return Err(bad(
-            "solver.explore_rows",
+        return Err((
+            "explore_rows",
             format!("must be 0 (explore on the whole record) or at least {MIN_EXPLORE_ROWS}, got {}", s.explore_rows),
         ));
     }
@@ -247,25 +300,10 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
         ("huber_tol", s.huber_tol),
     ] {
         if !(v.is_finite() && v >= 0.0) {
-            return Err(bad(&format!("solver.{name}"), format!("must be a non-negative number, got {v}")));
+            return Err((name, format!("must be a non-negative number, got {v}")));
         }
     }
-    let sel = &job.selection;
-    if !(sel.min_tolerance.is_finite() && sel.min_tolerance >= 0.0) {
-        return Err(bad("selection.min_tolerance", format!("must be >= 0, got {}", sel.min_tolerance)));
-    }
-    if !(sel.fit_tolerance.is_finite() && sel.fit_tolerance >= 0.0) {
-        return Err(bad("selection.fit_tolerance", format!("must be >= 0, got {}", sel.fit_tolerance)));
-    }
-    let u = &job.uncertainty;
-    let (lo, hi) = (crate::estimate::bootstrap::MIN_REPLICATES, super::Uncertainty::MAX_REPLICATES);
-    if !u.is_local() && !(lo..=hi).contains(&u.replicates) {
-        return Err(bad("uncertainty.replicates", format!("must be from {lo} to {hi}, got {}", u.replicates)));
-    }
-    job.output = resolve(&base, &job.output);
-    check_output_folder(&job.output).map_err(|msg| bad("output", msg))?;
-    job.grid.k = KGrid::List(ks);
-    Ok(job)
+    Ok(())
 }
 
 /// Checks, without leaving a trace, that `out` is a folder `run` will be able to create or

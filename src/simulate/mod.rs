@@ -106,6 +106,11 @@ pub struct Outliers {
     pub max: f64,
 }
 
+/// Most samples [`generate`] makes (`simulate --n`): ten million, hours of a fast actuator's
+/// record and about 600 MB of CSV, beyond any record a sweep fits; a typo such as `--n 1e15`
+/// must be an error, not an allocation that aborts the process.
+pub const MAX_SAMPLES: usize = 10_000_000;
+
 /// Settings of [`generate`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimOptions {
@@ -139,8 +144,8 @@ const OUTLIER_STREAM: u64 = 2;
 
 fn check_options(opts: &SimOptions) -> Result<()> {
     let bad = |msg: String| Err(Error::Invalid(msg));
-    if opts.n == 0 {
-        return bad("the number of samples must be at least 1".into());
+    if !(1..=MAX_SAMPLES).contains(&opts.n) {
+        return bad(format!("the number of samples must be between 1 and {MAX_SAMPLES}, got {}", opts.n));
     }
     if !(opts.amplitude.is_finite() && opts.amplitude > 0.0) {
         return bad(format!("PRBS amplitude must be a positive number, got {}", opts.amplitude));
@@ -371,7 +376,8 @@ mod tests {
     fn options_are_checked() {
         let sys = read_system(&piezo_path()).unwrap();
         let cases: Vec<(SimOptions, &str)> = vec![
-            (SimOptions { n: 0, ..opts(1) }, "at least 1"),
+            (SimOptions { n: 0, ..opts(1) }, "between 1 and"),
+            (SimOptions { n: MAX_SAMPLES + 1, ..opts(1) }, "between 1 and 10000000"),
             (SimOptions { bits: 40, ..opts(1) }, "not supported"),
             (SimOptions { amplitude: 0.0, ..opts(1) }, "amplitude"),
             (SimOptions { noise_std: -1.0, ..opts(1) }, "noise standard deviation"),
