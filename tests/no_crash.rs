@@ -241,7 +241,11 @@ fn fit_bootstrap_1e12_and_orders_above_the_limit_are_refused() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = job_folder(tmp.path());
     let fit = ["fit", "--data", "data.csv", "--nb", "2", "--nf", "1", "--k", "1"];
-    assert_refused(&dir, &[&fit[..], &["--bootstrap", "1000000000000"]].concat(), "--bootstrap must be from 40 to 100000");
+    assert_refused(
+        &dir,
+        &[&fit[..], &["--bootstrap", "1000000000000"]].concat(),
+        "--bootstrap must be from 40 to 100000",
+    );
     assert_refused(&dir, &[&fit[..5], &["--nf", "61", "--k", "1"]].concat(), "--nf orders above 60");
     assert_refused(&dir, &[&fit[..], &["--ftol=-1"]].concat(), "--ftol must be a non-negative number");
 }
