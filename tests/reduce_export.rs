@@ -139,7 +139,7 @@ fn parquet_file_has_the_documented_schema() {
     let path = dir.path().join("cells.parquet");
     write_cells(&path, &sample_rows()).unwrap();
     let df = ParquetReader::new(File::open(&path).unwrap()).finish().unwrap();
-    // The published layout (README "Columns of cells.parquet"), written out here rather than
+    // The published layout (docs/JOBS.md "Columns of cells.parquet"), written out here rather than
     // derived from `COLUMNS`, so that a renamed, retyped, moved or dropped column fails.
     let (s, u, f, b) = (DataType::String, DataType::UInt32, DataType::Float64, DataType::Boolean);
     let l = DataType::List(Box::new(DataType::Float64));

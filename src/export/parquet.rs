@@ -1,6 +1,6 @@
 //! `cells.parquet`: the result table, one [`CellRow`] per row.
 //!
-//! The columns, their order, types and nulls are [`crate::table::COLUMNS`] (README "Columns
+//! The columns, their order, types and nulls are [`crate::table::COLUMNS`] (docs/JOBS.md "Columns
 //! of cells.parquet"); this module only maps that list onto polars. Columns marked optional
 //! there are absent from tables of older versions and read as null (or an empty list).
 //!

@@ -3,7 +3,7 @@
 //! A job is JSON (unknown fields are rejected). Relative paths resolve against the job file's
 //! folder. Grid values of k are built from integer indices (`from + (to-from) i/(count-1)` or
 //! its logarithmic twin), never by repeated float addition, so the same job always gives the
-//! same k values bit for bit. Every field, default and allowed range is documented in README.
+//! same k values bit for bit. Every field, default and allowed range is documented in docs/JOBS.md.
 
 use crate::data::{self, ColumnRef, Delimiter, Header, Offset, ReadOptions};
 use crate::error::{Error, Result};

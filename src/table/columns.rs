@@ -205,7 +205,7 @@ macro_rules! column {
     };
 }
 
-/// The columns of `cells.parquet`, in table order (README "Columns of cells.parquet").
+/// The columns of `cells.parquet`, in table order (docs/JOBS.md "Columns of cells.parquet").
 pub const COLUMNS: &[Column] = &[
     column!("method", FitKind, |r| r.key.kind),
     column!("nb", u32, |r| r.key.nb),
@@ -312,11 +312,12 @@ mod tests {
     use super::*;
     use crate::table::RowKey;
 
-    /// README's column reference lists exactly the table's columns, in table order.
+    /// docs/JOBS.md, the column reference, lists exactly the table's columns, in table order.
     #[test]
-    fn table_readme_lists_the_columns_in_order() {
-        let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
-        let section = readme.split("### Columns of cells.parquet").nth(1).expect("README has the column reference");
+    fn the_column_reference_lists_the_columns_in_order() {
+        let reference = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/JOBS.md")).unwrap();
+        let section =
+            reference.split("## Columns of cells.parquet").nth(1).expect("docs/JOBS.md has the column reference");
         let listed: Vec<&str> = section
             .lines()
             .skip_while(|l| !l.starts_with('|'))
@@ -324,7 +325,7 @@ mod tests {
             .filter_map(|l| l.trim_start_matches('|').trim().strip_prefix('`')?.split('`').next())
             .collect();
         let names: Vec<&str> = COLUMNS.iter().map(|c| c.name).collect();
-        assert_eq!(listed, names, "README's \"Columns of cells.parquet\" against table::COLUMNS");
+        assert_eq!(listed, names, "docs/JOBS.md \"Columns of cells.parquet\" against table::COLUMNS");
     }
 
     #[test]
