@@ -17,7 +17,8 @@
 //! the well-formed job all cases are derived from; it shows that the checks would notice a
 //! write).
 
-use std::collections::BTreeMap;
+mod common;
+
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -75,25 +76,6 @@ fn copy_tree(from: &Path, to: &Path) {
     }
 }
 
-/// Every path under `root` with its contents (`None` for a folder).
-fn snapshot(root: &Path) -> BTreeMap<PathBuf, Option<Vec<u8>>> {
-    fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<PathBuf, Option<Vec<u8>>>) {
-        for entry in fs::read_dir(dir).unwrap() {
-            let p = entry.unwrap().path();
-            let rel = p.strip_prefix(root).unwrap().to_path_buf();
-            if p.is_dir() {
-                out.insert(rel, None);
-                walk(root, &p, out);
-            } else {
-                out.insert(rel, Some(fs::read(&p).unwrap()));
-            }
-        }
-    }
-    let mut out = BTreeMap::new();
-    walk(root, root, &mut out);
-    out
-}
-
 struct Outcome {
     code: Option<i32>,
     stdout: String,
@@ -137,7 +119,7 @@ fn check(case: &Case) -> Vec<String> {
     copy_tree(&case.dir, &dir);
     let job = dir.join("job.json");
     let named = format!("{}: ", dir.join(&case.file).display());
-    let before = snapshot(&root);
+    let before = common::snapshot(&root, false);
     let had_output = dir.join("out").exists();
     let mut problems = Vec::new();
     for args in [vec!["plan", job.to_str().unwrap()], vec!["run", job.to_str().unwrap(), "--quiet"]] {
@@ -160,7 +142,7 @@ fn check(case: &Case) -> Vec<String> {
         if !o.stdout.is_empty() {
             fail(format!("unexpected output on stdout: {:?}", o.stdout));
         }
-        if snapshot(&root) != before {
+        if common::snapshot(&root, false) != before {
             fail("files were written, changed or removed".into());
         }
         if !had_output && dir.join("out").exists() {
@@ -194,13 +176,13 @@ fn the_valid_job_passes_and_its_run_is_visible() {
     let dir = root.join("_valid");
     copy_tree(&Path::new(CORPUS).join("_valid"), &dir);
     let job = dir.join("job.json");
-    let before = snapshot(&root);
+    let before = common::snapshot(&root, false);
     let plan = oesweep(&root, &["plan", job.to_str().unwrap()]);
     assert_eq!(plan.code, Some(0), "{}", plan.stderr);
     assert!(plan.stderr.is_empty(), "{}", plan.stderr);
-    assert_eq!(snapshot(&root), before, "plan wrote files");
+    assert_eq!(common::snapshot(&root, false), before, "plan wrote files");
     let run = oesweep(&root, &["run", job.to_str().unwrap(), "--quiet"]);
     assert!(matches!(run.code, Some(0 | 1)), "exit {:?}: {}", run.code, run.stderr);
     assert!(dir.join("out").join("cells.parquet").is_file());
-    assert_ne!(snapshot(&root), before);
+    assert_ne!(common::snapshot(&root, false), before);
 }

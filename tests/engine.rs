@@ -5,7 +5,6 @@
 mod common;
 
 use oesweep::engine::{self, MergeEnd, RunEnd, RunOptions};
-use oesweep::export::parquet::read_cells;
 use oesweep::shard::Shard;
 use oesweep::table::CellRow;
 use std::cell::Cell;
@@ -16,27 +15,11 @@ const KS: usize = 4;
 
 /// Simulated piezo data (noise and spikes) and a job over a small grid writing to `out`.
 fn job(dir: &Path, out: &str) -> PathBuf {
-    if !dir.join("est.csv").exists() {
-        let noise = common::Noise { amplitude: 1.0, std: 0.05, spike_probability: 0.03, spike_range: "1,3" };
-        common::simulate(&common::piezo_system(), &dir.join("est.csv"), 3000, 1, &noise);
-    }
-    let job = serde_json::json!({
-        "name": "engine",
-        "data": {"path": "est.csv", "ts": 1e-4},
-        "grid": {"nb": [5, 7], "nf": [4, 6], "k": {"from": 0.1, "to": 2.0, "count": KS, "spacing": "log"}},
-        "output": out,
-    });
-    let p = dir.join(format!("{out}.json"));
-    std::fs::write(&p, job.to_string()).unwrap();
-    p
+    common::piezo_job(dir, out, "engine", 3000, ([5, 7], [4, 6]), (0.1, KS))
 }
 
 fn table(out: &Path) -> Vec<CellRow> {
-    let mut rows = read_cells(&out.join("cells.parquet")).unwrap();
-    for r in &mut rows {
-        r.fit.seconds = 0.0;
-    }
-    rows
+    common::table_without_seconds(out)
 }
 
 fn shard(index: usize, count: usize) -> RunOptions {

@@ -5,25 +5,8 @@
 mod common;
 
 use oesweep::engine::{self, RunEnd, RunOptions};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
-
-/// A small job over simulated piezo data, writing to `out`.
-fn job(dir: &Path, out: &str) -> PathBuf {
-    if !dir.join("est.csv").exists() {
-        let noise = common::Noise { amplitude: 1.0, std: 0.05, spike_probability: 0.03, spike_range: "1,3" };
-        common::simulate(&common::piezo_system(), &dir.join("est.csv"), 1000, 1, &noise);
-    }
-    let job = serde_json::json!({
-        "name": "host",
-        "data": {"path": "est.csv", "ts": 1e-4},
-        "grid": {"nb": [2, 3], "nf": [2, 3], "k": {"from": 0.5, "to": 2.0, "count": 2, "spacing": "log"}},
-        "output": out,
-    });
-    let p = dir.join(format!("{out}.json"));
-    std::fs::write(&p, job.to_string()).unwrap();
-    p
-}
 
 /// The flags that say how a handler runs (the C library may add its own, `SA_RESTORER`, to any
 /// disposition it sets, the default one too).
@@ -60,7 +43,12 @@ fn runs_leave_the_host_process_alone() {
     let dir = tempfile::tempdir().unwrap();
 
     for out in ["one", "two"] {
-        let o = engine::run(&job(dir.path(), out), &RunOptions { threads: 2, ..Default::default() }, &|_| {}).unwrap();
+        let o = engine::run(
+            &common::piezo_job(dir.path(), out, "host", 1000, ([2, 3], [2, 3]), (0.5, 2)),
+            &RunOptions { threads: 2, ..Default::default() },
+            &|_| {},
+        )
+        .unwrap();
         assert!(matches!(o.end, RunEnd::Merged { .. }), "{o:?}");
     }
     // A data file the Parquet reader panics on: an input error, and the host's hook heard it.
@@ -79,7 +67,7 @@ fn runs_leave_the_host_process_alone() {
     // The command line arms the handlers for its run and puts back what it found.
     use clap::Parser;
     for _ in 0..2 {
-        let job = job(dir.path(), "cli");
+        let job = common::piezo_job(dir.path(), "cli", "host", 1000, ([2, 3], [2, 3]), (0.5, 2));
         let cli =
             oesweep::cli::Cli::try_parse_from(["oesweep", "run", job.to_str().unwrap(), "--quiet", "--force"]).unwrap();
         assert_eq!(oesweep::cli::run(cli).unwrap(), 0);

@@ -6,10 +6,8 @@
 
 mod common;
 
-use oesweep::export::parquet::read_cells;
 use oesweep::kernels::{Flavour, flavour};
-use oesweep::table::CellRow;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn oesweep(args: &[&str]) -> Output {
@@ -29,32 +27,6 @@ fn text(o: &Output) -> String {
     format!("stdout:\n{}\nstderr:\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
 }
 
-/// Simulated piezo data and a small job writing to `out`.
-fn job(dir: &Path, out: &str) -> PathBuf {
-    if !dir.join("est.csv").exists() {
-        let noise = common::Noise { amplitude: 1.0, std: 0.05, spike_probability: 0.03, spike_range: "1,3" };
-        common::simulate(&common::piezo_system(), &dir.join("est.csv"), 2000, 1, &noise);
-    }
-    let job = serde_json::json!({
-        "name": "flavour",
-        "data": {"path": "est.csv", "ts": 1e-4},
-        "grid": {"nb": [2, 4], "nf": [2, 4], "k": {"from": 0.1, "to": 2.0, "count": 3, "spacing": "log"}},
-        "output": out,
-    });
-    let p = dir.join(format!("{out}.json"));
-    std::fs::write(&p, job.to_string()).unwrap();
-    p
-}
-
-/// The table without the wall-clock column.
-fn table(out: &Path) -> Vec<CellRow> {
-    let mut rows = read_cells(&out.join("cells.parquet")).unwrap();
-    for r in &mut rows {
-        r.fit.seconds = 0.0;
-    }
-    rows
-}
-
 /// Exit 2 and one line on stderr naming both flavours, nothing merged.
 fn refused_as_a_mix(o: &Output, out: &Path) {
     assert_eq!(o.status.code(), Some(2), "{}", text(o));
@@ -71,7 +43,8 @@ fn a_table_takes_rows_of_one_kernel_flavour() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let (file, out) = (job(dir.path(), "out"), dir.path().join("out"));
+    let (file, out) =
+        (common::piezo_job(dir.path(), "out", "flavour", 2000, ([2, 4], [2, 4]), (0.1, 3)), dir.path().join("out"));
     let file = file.to_str().unwrap();
 
     // Shard 0 on a "generic" node, shard 1 on this AVX2 one.
@@ -88,12 +61,26 @@ fn a_table_takes_rows_of_one_kernel_flavour() {
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     let o = oesweep(&["merge", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
-    let o = generic(&["run", job(dir.path(), "generic").to_str().unwrap(), "--quiet"]);
+    let o = generic(&[
+        "run",
+        common::piezo_job(dir.path(), "generic", "flavour", 2000, ([2, 4], [2, 4]), (0.1, 3)).to_str().unwrap(),
+        "--quiet",
+    ]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
-    assert!(table(&out) == table(&dir.path().join("generic")), "generic shards differ from the generic run");
+    assert!(
+        common::table_without_seconds(&out) == common::table_without_seconds(&dir.path().join("generic")),
+        "generic shards differ from the generic run"
+    );
 
     // The reason for all this: the flavours' tables differ (and the hook did force the other).
-    let o = oesweep(&["run", job(dir.path(), "avx2").to_str().unwrap(), "--quiet"]);
+    let o = oesweep(&[
+        "run",
+        common::piezo_job(dir.path(), "avx2", "flavour", 2000, ([2, 4], [2, 4]), (0.1, 3)).to_str().unwrap(),
+        "--quiet",
+    ]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
-    assert!(table(&out) != table(&dir.path().join("avx2")), "the two flavours gave the same table");
+    assert!(
+        common::table_without_seconds(&out) != common::table_without_seconds(&dir.path().join("avx2")),
+        "the two flavours gave the same table"
+    );
 }

@@ -10,11 +10,13 @@
 //! The one abort left is polars' on a damaged Parquet *page header* (see `plan_parquet` in
 //! tests/fuzz_parsers.rs, which tolerates it): no case here has met it.
 
+mod common;
+
+use common::Snapshot;
 use polars::prelude::SerReader;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
 use serde_json::Value;
-use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -88,33 +90,6 @@ fn strings(args: &[&str]) -> Vec<String> {
     args.iter().map(|s| s.to_string()).collect()
 }
 
-type Snapshot = BTreeMap<PathBuf, Option<Vec<u8>>>;
-
-/// Every path under `root` with its contents (`None` for a folder), but the lock files of an
-/// output folder (`.oesweep*.lock`, src/lock.rs): a merge must lock before it reads, and it
-/// signs the folder's lock with its pid; the files mean nothing until locked.
-fn snapshot(root: &Path) -> Snapshot {
-    fn walk(root: &Path, dir: &Path, out: &mut Snapshot) {
-        for entry in fs::read_dir(dir).unwrap() {
-            let p = entry.unwrap().path();
-            let name = p.file_name().unwrap().to_string_lossy();
-            if name.starts_with(".oesweep") && name.ends_with(".lock") {
-                continue;
-            }
-            let rel = p.strip_prefix(root).unwrap().to_path_buf();
-            if p.is_dir() {
-                out.insert(rel, None);
-                walk(root, &p, out);
-            } else {
-                out.insert(rel, Some(fs::read(&p).unwrap_or_default()));
-            }
-        }
-    }
-    let mut out = BTreeMap::new();
-    walk(root, root, &mut out);
-    out
-}
-
 fn copy_tree(from: &Path, to: &Path) {
     fs::create_dir_all(to).unwrap();
     for entry in fs::read_dir(from).unwrap() {
@@ -138,7 +113,7 @@ fn verdict(o: &Outcome, before: &Snapshot, root: &Path) -> Result<(), String> {
             if o.stderr.lines().count() != 1 || !o.stderr.starts_with("error: ") || !o.stderr.ends_with('\n') {
                 return Err(format!("exit 2 without exactly one error line: {}", show()));
             }
-            if snapshot(root) != *before {
+            if common::snapshot(root, true) != *before {
                 return Err(format!("exit 2 but files were written, changed or removed: {}", show()));
             }
             Ok(())
@@ -188,7 +163,7 @@ fn fresh(name: &str) -> (tempfile::TempDir, PathBuf) {
 
 /// Runs `args` in `root` and asserts exit 2, one line holding `needle`, nothing written.
 fn assert_refused(root: &Path, args: &[&str], needle: &str) {
-    let before = snapshot(root);
+    let before = common::snapshot(root, true);
     let o = oesweep(root, &strings(args));
     assert_eq!(o.code, Some(2), "{args:?}: {:?} {}", o.signal, o.stderr);
     verdict(&o, &before, root).unwrap();
@@ -529,7 +504,7 @@ proptest! {
     fn any_command_line_is_0_1_or_2(args in command_line()) {
         let tmp = tempfile::tempdir().unwrap();
         let dir = job_folder(&tmp.path().canonicalize().unwrap());
-        let before = snapshot(&dir);
+        let before = common::snapshot(&dir, true);
         let o = oesweep(&dir, &args);
         if let Err(why) = verdict(&o, &before, &dir) {
             return Err(TestCaseError::fail(format!("oesweep {args:?}: {why}")));
@@ -549,7 +524,7 @@ proptest! {
         let (_tmp, root) = fresh("done");
         let out = root.join("done/out");
         mutate(&out.join(file), &edits);
-        let before = snapshot(&root);
+        let before = common::snapshot(&root, true);
         let args = with_folder(&args, &out);
         let o = oesweep(&root, &args);
         if let Err(why) = verdict(&o, &before, &root) {
@@ -571,7 +546,7 @@ proptest! {
         let path = root.join(format!("sharded/out/parts/shard-{shard}-of-2/{file}"));
         prop_assume!(path.is_file());
         mutate(&path, &edits);
-        let before = snapshot(&root);
+        let before = common::snapshot(&root, true);
         let args = if resume {
             // A whole run resumes from the shards' folders.
             strings(&["run", root.join("sharded/job.json").to_str().unwrap(), "--quiet", "--threads", "1"])

@@ -11,12 +11,14 @@ use crate::estimate::InitialState;
 use crate::estimate::SolverOptions;
 
 mod inputs;
+mod uncertainty;
 mod validate;
 
 pub use crate::reduce::SelectionSettings;
 pub use inputs::{Inputs, inputs_of_records, load_inputs, read_inputs, read_records};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+pub use uncertainty::{Uncertainty, UncertaintyMethod};
 use validate::{check_as_run, resolve_validation, validate};
 pub use validate::{check_band, check_k, check_order, check_sampling_period, check_solver};
 
@@ -236,87 +238,6 @@ impl StartStrategy {
             StartStrategy::Neighbour => "neighbour",
             StartStrategy::Best => "best",
         }
-    }
-}
-
-/// How the picks' uncertainty is reported (METHOD.md 17): `"local"` (the default: the
-/// sandwich covariance at the fit, METHOD.md 10) or `"bootstrap"`, also written
-/// `{"method": "bootstrap", "replicates": B, "seed": S}`: the bootstrap of the whole estimation
-/// of each watched pick after the sweep (METHOD.md 17.3), its intervals in selection.json.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct Uncertainty {
-    pub method: UncertaintyMethod,
-    /// B, the bootstrap's replicates (default [`crate::estimate::bootstrap::DEFAULT_REPLICATES`]).
-    pub replicates: usize,
-    /// The bootstrap's seed (default [`crate::estimate::bootstrap::DEFAULT_SEED`]).
-    pub seed: u64,
-}
-
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum UncertaintyMethod {
-    /// The sandwich covariance at the fit only.
-    #[default]
-    Local,
-    /// The bootstrap of the whole estimation of the watched picks besides.
-    Bootstrap,
-}
-
-impl Default for Uncertainty {
-    fn default() -> Self {
-        Uncertainty {
-            method: UncertaintyMethod::Local,
-            replicates: crate::estimate::bootstrap::DEFAULT_REPLICATES,
-            seed: crate::estimate::bootstrap::DEFAULT_SEED,
-        }
-    }
-}
-
-impl Uncertainty {
-    pub fn is_local(&self) -> bool {
-        self.method == UncertaintyMethod::Local
-    }
-}
-
-/// The object form of `uncertainty`, as written.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct UncertaintyObject {
-    method: UncertaintyMethod,
-    replicates: Option<usize>,
-    seed: Option<u64>,
-}
-
-impl<'de> Deserialize<'de> for Uncertainty {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        use serde::de::Error as _;
-        let v = serde_json::Value::deserialize(d)?;
-        let o = match v {
-            v @ serde_json::Value::String(_) => {
-                let method =
-                    UncertaintyMethod::deserialize(v).map_err(|e| D::Error::custom(format!("uncertainty: {e}")))?;
-                UncertaintyObject { method, replicates: None, seed: None }
-            }
-            v @ serde_json::Value::Object(_) => {
-                UncertaintyObject::deserialize(v).map_err(|e| D::Error::custom(format!("uncertainty: {e}")))?
-            }
-            other => {
-                return Err(D::Error::custom(format!(
-                    "uncertainty: expected \"local\", \"bootstrap\" or {{\"method\": \"bootstrap\", \"replicates\": B, \"seed\": S}}, got {other}"
-                )));
-            }
-        };
-        if o.method == UncertaintyMethod::Local && (o.replicates.is_some() || o.seed.is_some()) {
-            return Err(D::Error::custom(
-                "uncertainty: 'replicates' and 'seed' are settings of the method \"bootstrap\"",
-            ));
-        }
-        let d = Uncertainty::default();
-        Ok(Uncertainty {
-            method: o.method,
-            replicates: o.replicates.unwrap_or(d.replicates),
-            seed: o.seed.unwrap_or(d.seed),
-        })
     }
 }
 

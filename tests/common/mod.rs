@@ -73,3 +73,66 @@ pub fn simulate(system: &std::path::Path, out: &std::path::Path, n: usize, seed:
 pub fn piezo_system() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_system.json")
 }
+
+/// Every path under `root` with its contents (`None` for a folder): "nothing written" is this
+/// snapshot unchanged. `skip_locks`: leave out the output folder's lock files
+/// (`.oesweep*.lock`), which a command that must lock before it reads (merge) signs with its pid.
+pub fn snapshot(root: &std::path::Path, skip_locks: bool) -> Snapshot {
+    fn walk(root: &std::path::Path, dir: &std::path::Path, skip_locks: bool, out: &mut Snapshot) {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let p = entry.unwrap().path();
+            let name = p.file_name().unwrap().to_string_lossy();
+            if skip_locks && name.starts_with(".oesweep") && name.ends_with(".lock") {
+                continue;
+            }
+            let rel = p.strip_prefix(root).unwrap().to_path_buf();
+            if p.is_dir() {
+                out.insert(rel, None);
+                walk(root, &p, skip_locks, out);
+            } else {
+                out.insert(rel, Some(std::fs::read(&p).unwrap_or_default()));
+            }
+        }
+    }
+    let mut out = Snapshot::new();
+    walk(root, root, skip_locks, &mut out);
+    out
+}
+
+/// What [`snapshot`] gives.
+pub type Snapshot = std::collections::BTreeMap<std::path::PathBuf, Option<Vec<u8>>>;
+
+/// A job `name` over `n` samples of simulated piezo data (`est.csv` in `dir`, written once: noise
+/// and 3 % spikes) on the grid nb x nf x `ks` log-spaced k in [`k_from`, 2], writing to `out`;
+/// the job file is `dir/out.json`.
+pub fn piezo_job(
+    dir: &std::path::Path,
+    out: &str,
+    name: &str,
+    n: usize,
+    (nb, nf): ([usize; 2], [usize; 2]),
+    (k_from, ks): (f64, usize),
+) -> std::path::PathBuf {
+    if !dir.join("est.csv").exists() {
+        let noise = Noise { amplitude: 1.0, std: 0.05, spike_probability: 0.03, spike_range: "1,3" };
+        simulate(&piezo_system(), &dir.join("est.csv"), n, 1, &noise);
+    }
+    let job = serde_json::json!({
+        "name": name,
+        "data": {"path": "est.csv", "ts": 1e-4},
+        "grid": {"nb": nb, "nf": nf, "k": {"from": k_from, "to": 2.0, "count": ks, "spacing": "log"}},
+        "output": out,
+    });
+    let p = dir.join(format!("{out}.json"));
+    std::fs::write(&p, job.to_string()).unwrap();
+    p
+}
+
+/// The table of a results folder without the wall-clock column.
+pub fn table_without_seconds(out: &std::path::Path) -> Vec<oesweep::table::CellRow> {
+    let mut rows = oesweep::export::parquet::read_cells(&out.join("cells.parquet")).unwrap();
+    for r in &mut rows {
+        r.fit.seconds = 0.0;
+    }
+    rows
+}
