@@ -21,8 +21,7 @@ mod common;
 
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 const CORPUS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/bad_inputs");
 
@@ -76,38 +75,9 @@ fn copy_tree(from: &Path, to: &Path) {
     }
 }
 
-struct Outcome {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-/// Runs the binary in `cwd` (so that nothing lands in the repository even if a relative path
-/// escaped resolution), killing it after [`TIMEOUT`].
-fn oesweep(cwd: &Path, args: &[&str]) -> Outcome {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_oesweep"))
-        .args(args)
-        .current_dir(cwd)
-        .env("RUST_BACKTRACE", "0")
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("binary starts");
-    let t0 = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if t0.elapsed() > TIMEOUT {
-            child.kill().unwrap();
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    let o = child.wait_with_output().unwrap();
-    Outcome {
-        code: o.status.code(),
-        stdout: String::from_utf8_lossy(&o.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
-    }
+/// Runs the binary in `cwd`, killed after [`TIMEOUT`].
+fn oesweep(cwd: &Path, args: &[&str]) -> common::Outcome {
+    common::run_oesweep(cwd, args, TIMEOUT)
 }
 
 /// Checks one case under both commands; returns the problems found (empty when it passes).

@@ -136,3 +136,55 @@ pub fn table_without_seconds(out: &std::path::Path) -> Vec<oesweep::table::CellR
     }
     rows
 }
+
+/// How a run of the `oesweep` binary ended.
+pub struct Outcome {
+    pub code: Option<i32>,
+    /// The signal that ended it (a panic's abort, or the kill after the time limit).
+    pub signal: Option<i32>,
+    pub stdout: String,
+    pub stderr: String,
+}
+
+/// Runs the `oesweep` binary in `cwd` (so that nothing lands in the repository even if a
+/// relative path escaped resolution), stdin closed, its pipes read on threads (a chatty child
+/// must not block on a full pipe). `limit` is a safety net against a hang, not a measurement:
+/// a child still running then is killed (`signal` 9) and the caller's checks fail on it.
+pub fn run_oesweep<S: AsRef<std::ffi::OsStr>>(
+    cwd: &std::path::Path,
+    args: &[S],
+    limit: std::time::Duration,
+) -> Outcome {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .args(args)
+        .current_dir(cwd)
+        .env("RUST_BACKTRACE", "0")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("binary starts");
+    let read = |mut pipe: Box<dyn std::io::Read + Send>| {
+        std::thread::spawn(move || {
+            let mut s = Vec::new();
+            pipe.read_to_end(&mut s).ok();
+            String::from_utf8_lossy(&s).into_owned()
+        })
+    };
+    let out = read(Box::new(child.stdout.take().unwrap()));
+    let err = read(Box::new(child.stderr.take().unwrap()));
+    let t0 = std::time::Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if t0.elapsed() > limit {
+            child.kill().ok();
+            break child.wait().unwrap();
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    };
+    Outcome { code: status.code(), signal: status.signal(), stdout: out.join().unwrap(), stderr: err.join().unwrap() }
+}
