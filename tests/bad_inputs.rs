@@ -62,19 +62,6 @@ fn cases() -> Vec<Case> {
     out
 }
 
-fn copy_tree(from: &Path, to: &Path) {
-    fs::create_dir_all(to).unwrap();
-    for entry in fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.file_type().unwrap().is_dir() {
-            copy_tree(&entry.path(), &target);
-        } else {
-            fs::copy(entry.path(), &target).unwrap();
-        }
-    }
-}
-
 /// Runs the binary in `cwd`, killed after [`TIMEOUT`].
 fn oesweep(cwd: &Path, args: &[&str]) -> common::Outcome {
     common::run_oesweep(cwd, args, TIMEOUT)
@@ -86,7 +73,7 @@ fn check(case: &Case) -> Vec<String> {
     // Canonical, because the program resolves the job's folder to an absolute path.
     let root = tmp.path().canonicalize().unwrap();
     let dir = root.join(&case.name);
-    copy_tree(&case.dir, &dir);
+    common::copy_tree(&case.dir, &dir);
     let job = dir.join("job.json");
     let named = format!("{}: ", dir.join(&case.file).display());
     let before = common::snapshot(&root, false);
@@ -144,7 +131,7 @@ fn the_valid_job_passes_and_its_run_is_visible() {
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path().canonicalize().unwrap();
     let dir = root.join("_valid");
-    copy_tree(&Path::new(CORPUS).join("_valid"), &dir);
+    common::copy_tree(&Path::new(CORPUS).join("_valid"), &dir);
     let job = dir.join("job.json");
     let before = common::snapshot(&root, false);
     let plan = oesweep(&root, &["plan", job.to_str().unwrap()]);

@@ -44,19 +44,6 @@ fn strings(args: &[&str]) -> Vec<String> {
     args.iter().map(|s| s.to_string()).collect()
 }
 
-fn copy_tree(from: &Path, to: &Path) {
-    fs::create_dir_all(to).unwrap();
-    for entry in fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.file_type().unwrap().is_dir() {
-            copy_tree(&entry.path(), &target);
-        } else {
-            fs::copy(entry.path(), &target).unwrap();
-        }
-    }
-}
-
 /// The verdict any input must get: exit 0, 1 or 2, no signal; on exit 2 exactly one line
 /// `error: ...` and `root` as it was. Returns a description of what is wrong.
 fn verdict(o: &Outcome, before: &Snapshot, root: &Path) -> Result<(), String> {
@@ -80,7 +67,7 @@ fn verdict(o: &Outcome, before: &Snapshot, root: &Path) -> Result<(), String> {
 /// output `out`).
 fn job_folder(root: &Path) -> PathBuf {
     let dir = root.join("case");
-    copy_tree(Path::new(VALID), &dir);
+    common::copy_tree(Path::new(VALID), &dir);
     dir
 }
 
@@ -93,7 +80,7 @@ fn fixtures() -> &'static Path {
         for (name, runs) in [("done", vec![vec![]]), ("sharded", vec![vec!["--shard", "0/2"], vec!["--shard", "1/2"]])]
         {
             let dir = root.join(name);
-            copy_tree(Path::new(VALID), &dir);
+            common::copy_tree(Path::new(VALID), &dir);
             for extra in runs {
                 let mut args = strings(&["run", "job.json", "--quiet", "--threads", "1"]);
                 args.extend(strings(&extra));
@@ -111,7 +98,7 @@ fn fixtures() -> &'static Path {
 fn fresh(name: &str) -> (tempfile::TempDir, PathBuf) {
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path().canonicalize().unwrap();
-    copy_tree(&fixtures().join(name), &root.join(name));
+    common::copy_tree(&fixtures().join(name), &root.join(name));
     (tmp, root)
 }
 

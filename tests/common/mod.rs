@@ -188,3 +188,17 @@ pub fn run_oesweep<S: AsRef<std::ffi::OsStr>>(
     };
     Outcome { code: status.code(), signal: status.signal(), stdout: out.join().unwrap(), stderr: err.join().unwrap() }
 }
+
+/// A copy of the folder `from` (files and subfolders) at `to`.
+pub fn copy_tree(from: &std::path::Path, to: &std::path::Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_tree(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), &target).unwrap();
+        }
+    }
+}
