@@ -1,27 +1,29 @@
 #!/usr/bin/env bash
-# Issue 30's headline, measured in one run on one machine: the paper grid (jobs/paper-grid.json,
-# 3840 Huber cells + 96 least-squares fits, --threads 2) against the scipy peer
-# (../shared/peer/peer.py) on a stratified sample of the same grid, extrapolated to the grid on
-# two processes:
+# The paper grid (jobs/paper-grid.json: 3840 Huber cells + 96 least-squares fits, N = 5000,
+# --threads 2) against the scipy peer (../shared/peer/peer.py) on the same cells, in one run on
+# one machine (issue 39):
 #
-#   sample   stratified: nB's strata 7-8, 9-11, 12-14 by 8, 10, 13 and nF's 4-7, 8-11, 12-15 by
-#            6, 10, 14 (9 pairs, each weighing its stratum's share of the 96 pairs) x the middle
-#            k of each block of 5 of the grid's 40 (8 k, equal weights): 9 least-squares fits
-#            + 72 Huber cells, one process;
-#   peer     96 x (weighted mean least-squares seconds per pair + 40 x weighted mean Huber
-#            seconds per cell) / 2 processes;
-#            (also printed: the same to 8 k per pair, 768 cells, for reading older figures);
-#   ratio    peer / ours, per run (ours and the peer's sample interleaved RUNS times);
-#   quality  the sample's cells where oesweep's criterion is no worse than the peer's at the
-#            same gamma, relative 1e-4 (examples/compare_peer_grid.rs, sweep start strategy);
+#   ratio    the peer's whole grid (nB 7..14 x nF 4..15 x the same 40 k: 3936 fits on 2
+#            processes, one BLAS thread each) over our run, interleaved RUNS times (ours, then
+#            the peer); medians and ranges;
+#   quality  cell by cell, our cells.parquet against the peer's first run
+#            (benches/compare_table.py): each Huber cell's W against the peer's parameters at
+#            our gamma, each least-squares fit against the peer's, at relative 1e-6, 1e-5 and
+#            1e-4, over all fits and over the peer's fits inside the stability boundary;
 #   where    the last run's `--profile`: solver fits and iterations by role, worker time by
 #            phase (solver, evidence, judging, the rest), reading and writing.
 #
-#   RUNS=5 bash benches/ratio.sh
+#   RUNS=3 bash benches/ratio.sh                 # 4-8 min per peer run on 2 cores
+#   SAMPLE=1 RUNS=5 bash benches/ratio.sh        # a quick look only, see below
 #
-# Run on an otherwise idle machine (nothing compiling). The peer runs with one BLAS thread; its
-# two-process figure assumes perfect scaling, which favours the peer. Environment:
-# CARGO_TARGET_DIR (default $HOME/.cache/oesweep-target), PEER (default ../shared/peer/peer.py).
+# SAMPLE=1 is the former quick look, labelled as such: the peer on a stratified sample (9 pairs
+# x 8 k, one process) extrapolated to the whole grid on two processes. The extrapolation flatters
+# us (issue 39: 75-100x extrapolated against 35x measured on the whole grid): never quote it as
+# the ratio.
+#
+# Run on an otherwise idle machine (nothing compiling). Environment: CARGO_TARGET_DIR (default
+# $HOME/.cache/oesweep-target), PEER (default ../shared/peer/peer.py), RUNS (default 3), KEEP (a
+# folder that keeps the peer's grids, our table and profiles; default a temporary one).
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -30,13 +32,18 @@ peer=${PEER:-$root/../shared/peer/peer.py}
 runs=${RUNS:-3}
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 
-if ! python3 -c 'import numpy, scipy' 2>/dev/null; then
-    python3 -m pip install --quiet numpy scipy
+if ! python3 -c 'import numpy, scipy, polars' 2>/dev/null; then
+    python3 -m pip install --quiet numpy scipy polars
 fi
-(cd "$root" && cargo build --release --quiet --bin oesweep --example compare_peer_grid)
+(cd "$root" && cargo build --release --quiet --bin oesweep)
 bin=$CARGO_TARGET_DIR/release/oesweep
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
+if [[ -n ${KEEP:-} ]]; then
+    work=$KEEP
+    mkdir -p "$work"
+else
+    work=$(mktemp -d)
+    trap 'rm -rf "$work"' EXIT
+fi
 est=$root/jobs/data/piezo_est.csv
 val=$root/jobs/data/piezo_val.csv
 
@@ -49,49 +56,72 @@ for key in ("data", "validation"):
 job["output"] = os.path.join(sys.argv[2], "pg")
 json.dump(job, open(os.path.join(sys.argv[2], "pg.json"), "w"))
 PY
-ks=$(python3 -c "print(','.join(repr(0.05 * (2 / 0.05) ** (i / 39)) for i in range(2, 40, 5)))")
 
-for i in $(seq "$runs"); do
+# ours RUN: the paper grid on 2 threads, its wall time in ours_RUN, its profile in profile_RUN.json.
+ours() {
+    local s e
     s=$(date +%s.%N)
-    "$bin" run "$work/pg.json" --threads 2 --quiet --force --profile "$work/profile_$i.json" >/dev/null 2>&1
+    "$bin" run "$work/pg.json" --threads 2 --quiet --force --profile "$work/profile_$1.json" >/dev/null 2>&1
     e=$(date +%s.%N)
-    echo "$s $e" >"$work/ours_$i"
-    python3 "$peer" --est "$est" --val "$val" --grid nb=8,10,13 nf=6,10,14 "k=$ks" --jobs 1 \
-        --out "$work/peer_$i.jsonl" >/dev/null
-done
+    echo "$s $e" >"$work/ours_$1"
+}
 
-python3 - "$work" "$runs" <<'PY'
+if [[ -z ${SAMPLE:-} ]]; then
+    ks=$(python3 -c "print(','.join(repr(0.05 * (2 / 0.05) ** (i / 39)) for i in range(40)))")
+    for i in $(seq "$runs"); do
+        ours "$i"
+        s=$(date +%s.%N)
+        python3 "$peer" --est "$est" --val "$val" --grid nb=7..14 nf=4..15 "k=$ks" --jobs 2 \
+            --out "$work/peer_$i.jsonl" >/dev/null 2>&1
+        e=$(date +%s.%N)
+        echo "$s $e" >"$work/peer_time_$i"
+    done
+    python3 - "$work" "$runs" <<'PY'
+import statistics, sys
+work, runs = sys.argv[1], int(sys.argv[2])
+def span(path):
+    s, e = map(float, open(path).read().split())
+    return e - s
+ours = [span(f"{work}/ours_{i}") for i in range(1, runs + 1)]
+peer = [span(f"{work}/peer_time_{i}") for i in range(1, runs + 1)]
+ratios = [p / o for p, o in zip(peer, ours)]
+for i, (o, p) in enumerate(zip(ours, peer), 1):
+    print(f"run {i}: paper grid (ours, --threads 2) {o:.2f} s; the peer's whole grid (3936 fits, 2 processes) "
+          f"{p:.1f} s; ratio {p / o:.1f}x")
+def rng(xs, f="{:.2f}"):
+    return f"median {f.format(statistics.median(xs))} [{f.format(min(xs))}, {f.format(max(xs))}]"
+print(f"ours {rng(ours)} s; peer {rng(peer, '{:.1f}')} s; ratio peer / ours, same run: {rng(ratios, '{:.1f}')}x")
+PY
+    echo "== quality, cell by cell (our table against the peer's first run; benches/compare_table.py)"
+    python3 "$root/benches/compare_table.py" "$work/pg/cells.parquet" "$work/peer_1.jsonl" "$est" | head -14
+else
+    echo "== SAMPLE=1: a quick look; the peer extrapolated from a stratified sample flatters us, not the ratio"
+    ks=$(python3 -c "print(','.join(repr(0.05 * (2 / 0.05) ** (i / 39)) for i in range(2, 40, 5)))")
+    for i in $(seq "$runs"); do
+        ours "$i"
+        python3 "$peer" --est "$est" --val "$val" --grid nb=8,10,13 nf=6,10,14 "k=$ks" --jobs 1 \
+            --out "$work/peer_$i.jsonl" >/dev/null
+    done
+    # Stratified: nB's strata 7-8, 9-11, 12-14 by 8, 10, 13 and nF's 4-7, 8-11, 12-15 by 6, 10,
+    # 14 (each weighing its stratum's share of the 96 pairs) x the middle k of each block of 5 of
+    # the grid's 40 (equal weights); peer = 96 x (least-squares s per pair + 40 x Huber s per
+    # cell) / 2 processes, assuming perfect scaling (which favours the peer).
+    python3 - "$work" "$runs" <<'PY'
 import json, statistics, sys
 work, runs = sys.argv[1], int(sys.argv[2])
-ratios, ours_all, peer_all, peer8 = [], [], [], []
+ratios = []
 for i in range(1, runs + 1):
     s, e = map(float, open(f"{work}/ours_{i}").read().split())
-    ours = e - s
     lines = [json.loads(l) for l in open(f"{work}/peer_{i}.jsonl")]
-    # Stratum weights: nB 8 stands for 7-8, 10 for 9-11, 13 for 12-14; nF 6, 10, 14 for 4 each.
     w = lambda l: {8: 2, 10: 3, 13: 3}[l["nb"]] / 8 / 3
-    ls = [l["seconds"] for l in lines if l["method"] == "ls"]
-    hub = [l["seconds"] for l in lines if l["method"] == "huber"]
     ls_pair = sum(w(l) * l["seconds"] for l in lines if l["method"] == "ls")
     hub_cell = sum(w(l) * l["seconds"] for l in lines if l["method"] == "huber") / 8
     peer = 96 * (ls_pair + 40 * hub_cell) / 2
-    peer8.append(96 * (ls_pair + 8 * hub_cell) / 2)
-    ours_all.append(ours)
-    peer_all.append(peer)
-    ratios.append(peer / ours)
-    print(f"run {i}: paper grid {ours:.2f} s; peer sample {len(ls)} ls + {len(hub)} huber fits, "
-          f"{sum(ls) + sum(hub):.1f} s -> grid on 2 processes {peer:.1f} s; ratio {peer / ours:.1f}x")
-def rng(xs, f="{:.2f}"):
-    return f"median {f.format(statistics.median(xs))} [{f.format(min(xs))}, {f.format(max(xs))}]"
-print(f"paper grid (ours, --threads 2): {rng(ours_all)} s")
-print(f"peer extrapolated (2 processes): {rng(peer_all, '{:.1f}')} s")
-print(f"ratio peer / ours: {rng(ratios, '{:.1f}')}x")
-# For reading older figures: the same extrapolation to 8 k per pair (768 cells, the peer's own
-# 8-k grid) instead of the paper grid's 40.
-print(f"(peer extrapolated to 8 k per pair, 2 processes: {rng(peer8, '{:.1f}')} s)")
+    ratios.append(peer / (e - s))
+    print(f"run {i}: ours {e - s:.2f} s; peer extrapolated {peer:.1f} s; {peer / (e - s):.1f}x (quick look)")
+print(f"quick look, extrapolated: median {statistics.median(ratios):.1f}x [{min(ratios):.1f}, {max(ratios):.1f}]")
 PY
-echo "== quality on the sample (the peer's first run; relative 1e-4, the sweep's chains)"
-"$CARGO_TARGET_DIR/release/examples/compare_peer_grid" "$est" "$work/peer_1.jsonl" 2>&1 | tail -5
+fi
 echo "== where the time goes (the last run's --profile; worker seconds summed over 2 threads)"
 python3 - "$work/profile_$runs.json" "$work/pg/cells.parquet" <<'PY'
 import json, sys
