@@ -134,14 +134,6 @@ impl Plan {
         (0..self.pairs.len()).flat_map(|p| (0..self.ks.len()).map(move |k| Cell { pair: p, k_index: k })).collect()
     }
 
-    /// Structure indices by decreasing estimated cost (nB + nF; ties: plan order), the order the
-    /// sweep hands pairs to its workers.
-    pub fn pairs_by_cost(&self) -> Vec<usize> {
-        let mut idx: Vec<usize> = (0..self.pairs.len()).collect();
-        idx.sort_by_key(|&p| (std::cmp::Reverse(self.pairs[p].nb + self.pairs[p].nf), p));
-        idx
-    }
-
     /// k indices in increasing k (ties: grid order): the order of the `chains` strategy.
     pub fn k_ascending(&self) -> Vec<usize> {
         let mut idx: Vec<usize> = (0..self.ks.len()).collect();

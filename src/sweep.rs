@@ -1,14 +1,18 @@
 //! Running a plan: rayon workers estimate the cells; the module that knows about the worker pool.
 //!
-//! Two stages ([`run_in_pool`]). (1) The least-squares phase (initial guesses, L2 fits, sigma)
-//! of every order pair, in parallel over pairs, largest first (`Sweep::least_squares_phase`).
-//! (2) The Huber cells, as the plan's start strategy says: `chains` (the default) walks each
-//! pair's k values in increasing order ([`estimate::chains::walk_pair`]) and runs in parallel
-//! over pairs (`Sweep::k_chains`); `ls` makes every cell independent and runs in parallel over
-//! cells (`Sweep::independent_cells`); `neighbour`/`best` walk each pair from the largest k
-//! down, in parallel over pairs (`Sweep::neighbour_chains`). Each task is sequential and deterministic, so the
-//! table does not depend on the thread count. One [`Workspace`] per worker ([`Workspaces`]). A
-//! panic inside a fit is caught and becomes a failed row; the sweep goes on.
+//! The sweep is a graph of tasks ([`tasks`], run by [`schedule::run`]): the least-squares phase
+//! (initial guesses, L2 fits, sigma) of every order pair (`Sweep::least_squares`), each after
+//! its sub-models' (their fits are its nested starts), and the Huber cells of each pair after its
+//! own least-squares phase, as the plan's start strategy says: `chains` (the default) walks the
+//! pair's k values in increasing order ([`estimate::chains::walk_pair`]), one task per pair
+//! (`Sweep::k_chain`); `ls` makes every cell a task of its own (`Sweep::independent_cell`);
+//! `neighbour`/`best` walk the pair from the largest k down, one task per pair
+//! (`Sweep::neighbour_chain`). No barrier between them: a pair's Huber cells start as soon as
+//! its least-squares fit is done, and the ready task on the longest estimated path to the end
+//! runs first. Each task is sequential and deterministic and reads nothing but the results of
+//! the tasks it comes after, so the table does not depend on the thread count or the order.
+//! One [`Workspace`] per running task ([`Workspaces`]), at most [`live_workspaces`] of them.
+//! A panic inside a fit is caught and becomes a failed row; the sweep goes on.
 //!
 //! Resuming ([`Control`]): rows finished by an earlier run of the same job are not computed
 //! again. A finished `ls` row *is* the pair's least-squares fit for the Huber phase: sigma and
@@ -26,15 +30,15 @@ use crate::estimate::chains::{CellOutcome, PairProblem, panic_message, walk_pair
 use crate::estimate::{self, InitialState, Judge, Problem, SolverOptions, StartKind, Workspace};
 use crate::job::StartStrategy;
 use crate::plan::{Cell, Plan, Structure};
-use crate::profile::{Phase, Profile, Role, Span};
+use crate::profile::{Phase, Profile, Role, Span, TaskTime, Workers};
 use crate::progress::Progress;
+use crate::schedule;
 use crate::spectral::SpectralEstimate;
 use crate::table::{CellRow, RowKey, sort_rows};
-use rayon::prelude::*;
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Instant;
 
 /// Everything a cell needs besides its orders and k.
@@ -175,7 +179,11 @@ pub fn run(plan: &Plan, ctx: &Context, threads: usize, progress: &Progress, cont
     let mut rows: Vec<CellRow> = done.into_values().chain(new_rows).collect();
     sort_rows(&mut rows);
     let interrupted = rows.len() < plan.pairs.len() + plan.n_cells();
-    Outcome { rows, seconds: t0.elapsed().as_secs_f64(), resumed, computed, interrupted }
+    let seconds = t0.elapsed().as_secs_f64();
+    if let Some(p) = &ctx.profile {
+        p.serial("sweep_serial", (seconds - p.report().schedule.wall_seconds).max(0.0));
+    }
+    Outcome { rows, seconds, resumed, computed, interrupted }
 }
 
 /// What the Huber cells of a pair take from its least-squares phase: the `ls` row, and sigma
@@ -204,11 +212,7 @@ fn chain_theta(ctx: &Context, row: &CellRow) -> Option<Vec<f64>> {
     row.ok().then(|| ctx.theta(row))
 }
 
-/// Per plan pair, what its least-squares phase gave (None: stopped before it) and whether its
-/// `ls` row was computed in this run (else an earlier run's row was taken).
-type LsPhase = Vec<Option<(PairLs, bool)>>;
-
-/// One sweep's plan, context and bookkeeping, shared by its steps.
+/// One sweep's plan, context and bookkeeping, shared by its tasks.
 struct Sweep<'s> {
     plan: &'s Plan,
     ctx: &'s Context<'s>,
@@ -219,10 +223,87 @@ struct Sweep<'s> {
     done: &'s HashMap<RowKey, CellRow>,
     on_row: &'s (dyn Fn(&CellRow) + Sync),
     stop: &'s AtomicBool,
+    /// `plan.ls_pairs()` and their sub-models (`plan.ls_sub_models()`).
+    ls_pairs: Vec<Structure>,
+    subs: Vec<Vec<usize>>,
+    /// Per pair of `ls_pairs`, once its task is done: what its least-squares phase gave (None:
+    /// stopped before it) and whether its `ls` row was computed in this run (else an earlier
+    /// run's row was taken).
+    ls: Vec<OnceLock<Option<(PairLs, bool)>>>,
+    /// The Huber rows computed so far.
+    huber: Mutex<Vec<CellRow>>,
 }
 
-/// The sweep in the pool: the least-squares phase of every pair, then the Huber cells as the
-/// start strategy says. Returns the rows computed in this run.
+/// A unit of work of the pool: one task of the sweep's [`schedule::Graph`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Task {
+    /// The least-squares phase of pair `i` of `plan.ls_pairs()`; after its sub-models' (nested
+    /// starts, METHOD.md 5.2, step 2).
+    Ls(usize),
+    /// The Huber cells of plan pair `p` under `chains` ([`chain_cells`]) or `neighbour`/`best`
+    /// (`Sweep::neighbour_chain`); after the pair's least-squares phase.
+    Pair(usize),
+    /// One Huber cell under `ls`; after its pair's least-squares phase.
+    Cell(Cell),
+}
+
+/// A pair's least-squares phase costs about this many of its Huber cells: it is what the
+/// schedule's priorities weigh (never the results). On the paper grid (`--profile`) a
+/// least-squares task took 8-12 times a Huber cell of its pair, on the 131 072-sample record
+/// 4 times.
+const LS_TASK_CELLS: u64 = 8;
+
+/// The sweep's tasks, their dependencies and priorities: the least-squares phase of every pair
+/// after its sub-models', the Huber cells of a pair after its least-squares phase, and no other
+/// barrier; the ready task on the longest estimated path to the end first
+/// ([`schedule::Graph::with_bottom_levels`]), with a task's cost estimated as nB + nF per cell
+/// (per-iteration work grows with the parameter count) and [`LS_TASK_CELLS`] cells per
+/// least-squares phase.
+fn tasks(plan: &Plan, nested_starts: bool) -> (Vec<Task>, schedule::Graph) {
+    let ls_pairs = plan.ls_pairs();
+    let subs = plan.ls_sub_models();
+    let size = |s: &Structure| (s.nb + s.nf) as u64;
+    let mut tasks: Vec<Task> = (0..ls_pairs.len()).map(Task::Ls).collect();
+    let mut after: Vec<Vec<usize>> = subs.into_iter().map(|s| if nested_starts { s } else { Vec::new() }).collect();
+    let mut cost: Vec<u64> = ls_pairs.iter().map(|s| LS_TASK_CELLS * size(s)).collect();
+    match plan.start {
+        StartStrategy::Ls => {
+            for cell in plan.cells() {
+                tasks.push(Task::Cell(cell));
+                after.push(vec![cell.pair]);
+                cost.push(size(&plan.pairs[cell.pair]));
+            }
+        }
+        StartStrategy::Chains | StartStrategy::Neighbour | StartStrategy::Best => {
+            for (p, pair) in plan.pairs.iter().enumerate() {
+                tasks.push(Task::Pair(p));
+                after.push(vec![p]);
+                cost.push(plan.ks.len() as u64 * size(pair));
+            }
+        }
+    }
+    (tasks, schedule::Graph::with_bottom_levels(after, &cost))
+}
+
+/// The workspaces' budget on a long record ([`live_workspaces`]).
+pub const WORKSPACE_BUDGET_BYTES: usize = 512 << 20;
+/// Workspaces allowed whatever the budget. With M0 the memory outside the workspaces and w
+/// one workspace's, M0 + 4 w <= 2 (M0 + 2 w): at most twice the memory of 2 workers.
+pub const MIN_LIVE_WORKSPACES: usize = 4;
+
+/// How many tasks, so workspaces, may run at once on `threads` threads when the longest record
+/// has `rows` samples: min(threads, max([`MIN_LIVE_WORKSPACES`], [`WORKSPACE_BUDGET_BYTES`] /
+/// [`Workspace::bytes`]`(rows)`)). A workspace holds record-length buffers
+/// ([`Workspace::RECORD_VECTORS`]); on a 1 000 000-sample record (750 000 estimation rows) 16
+/// of them took 1.45 GB against 216 MB for 2 (docs/PERFORMANCE.md, "Memory per worker"). The
+/// cap binds from about 350 000 rows on at 16 threads; the paper grid's 5 000 rows allow 559.
+pub fn live_workspaces(threads: usize, rows: usize) -> usize {
+    let budget = WORKSPACE_BUDGET_BYTES / Workspace::bytes(rows).max(1);
+    threads.min(budget.max(MIN_LIVE_WORKSPACES)).max(1)
+}
+
+/// The sweep in the pool: every task of [`tasks`] as soon as those it reads from are done, on at
+/// most [`live_workspaces`] threads. Returns the rows computed in this run.
 fn run_in_pool<'s>(
     plan: &'s Plan,
     ctx: &'s Context<'s>,
@@ -231,18 +312,86 @@ fn run_in_pool<'s>(
     on_row: &'s (dyn Fn(&CellRow) + Sync),
     stop: &'s AtomicBool,
 ) -> Vec<CellRow> {
-    let sweep = Sweep { plan, ctx, judge: ctx.judge(), workspaces: Workspaces::new(ctx), progress, done, on_row, stop };
-    progress.message("least-squares phase");
-    let ls = sweep.least_squares_phase();
-    progress.message("Huber phase");
-    let huber_rows = match plan.start {
-        StartStrategy::Ls => sweep.independent_cells(&ls),
-        StartStrategy::Chains => sweep.k_chains(&ls),
-        StartStrategy::Neighbour | StartStrategy::Best => sweep.neighbour_chains(&ls),
+    let (tasks, graph) = tasks(plan, ctx.solver.nested_starts);
+    let rows = ctx.est.u.len().max(ctx.val.map_or(0, |v| v.u.len()));
+    let threads = rayon::current_num_threads();
+    let live = live_workspaces(threads, rows);
+    let profile = ctx.profile.as_deref();
+    if let Some(p) = profile {
+        let workers = Workers {
+            threads,
+            live,
+            record_rows: rows,
+            workspace_bytes: Workspace::bytes(rows),
+            budget_bytes: WORKSPACE_BUDGET_BYTES,
+            min_live: MIN_LIVE_WORKSPACES,
+        };
+        p.plan_tasks(task_times(plan, &tasks, &graph), workers);
+    }
+    let sweep = Sweep {
+        plan,
+        ctx,
+        judge: ctx.judge(),
+        workspaces: Workspaces::new(ctx),
+        progress,
+        done,
+        on_row,
+        stop,
+        ls_pairs: plan.ls_pairs(),
+        subs: plan.ls_sub_models(),
+        ls: plan.ls_pairs().iter().map(|_| OnceLock::new()).collect(),
+        huber: Mutex::new(Vec::new()),
     };
-    let mut rows: Vec<CellRow> = ls.into_iter().flatten().filter(|(_, fresh)| *fresh).map(|(p, _)| p.row).collect();
-    rows.extend(huber_rows);
+    progress.message("least squares and Huber cells");
+    let t = Instant::now();
+    schedule::run(&graph, live, &|i| {
+        let since = Instant::now();
+        match tasks[i] {
+            Task::Ls(p) => sweep.least_squares(p),
+            Task::Pair(p) if plan.start == StartStrategy::Chains => sweep.k_chain(p),
+            Task::Pair(p) => sweep.neighbour_chain(p),
+            Task::Cell(cell) => sweep.independent_cell(cell),
+        }
+        if let Some(prof) = profile {
+            prof.task(i, since);
+        }
+    });
+    if let Some(p) = profile {
+        p.tasks_wall(t.elapsed().as_secs_f64());
+    }
+    let Sweep { ls, huber, .. } = sweep;
+    let fresh_ls = ls.into_iter().take(plan.pairs.len()).filter_map(|l| l.into_inner().flatten());
+    let mut rows: Vec<CellRow> = fresh_ls.filter(|(_, fresh)| *fresh).map(|(p, _)| p.row).collect();
+    rows.extend(huber.into_inner().unwrap_or_else(|e| e.into_inner()));
     rows
+}
+
+/// The profile's view of the tasks ([`crate::profile::Schedule`]), before they run.
+fn task_times(plan: &Plan, tasks: &[Task], graph: &schedule::Graph) -> Vec<TaskTime> {
+    let ls_pairs = plan.ls_pairs();
+    tasks
+        .iter()
+        .enumerate()
+        .map(|(id, task)| {
+            let (kind, pair, k_index) = match *task {
+                Task::Ls(i) => ("least_squares", ls_pairs[i], None),
+                Task::Pair(p) if plan.start == StartStrategy::Chains => ("chains", plan.pairs[p], None),
+                Task::Pair(p) => ("neighbour", plan.pairs[p], None),
+                Task::Cell(c) => ("cell", plan.pairs[c.pair], Some(c.k_index)),
+            };
+            TaskTime {
+                id,
+                kind,
+                nb: pair.nb,
+                nf: pair.nf,
+                delay: pair.delay,
+                k_index,
+                after: graph.after[id].clone(),
+                priority: graph.priority[id],
+                seconds: 0.0,
+            }
+        })
+        .collect()
 }
 
 impl Sweep<'_> {
@@ -254,41 +403,37 @@ impl Sweep<'_> {
         RowKey::huber(&self.plan.pairs[cell.pair], cell.k_index)
     }
 
-    /// The least-squares phase of every pair, in waves of equal nB + nF, so that a pair's
-    /// sub-models are fitted before it (nested starts, METHOD.md 5.2, step 2); the pairs of a
-    /// wave in parallel, one task each. The nested starts are read from the sub-models' rows,
-    /// as a resumed run reads them, so both give the same bits.
-    fn least_squares_phase(&self) -> LsPhase {
-        let ls_pairs = self.plan.ls_pairs();
-        let subs = self.plan.ls_sub_models();
-        let mut ls: LsPhase = (0..ls_pairs.len()).map(|_| None).collect();
-        for wave in self.plan.ls_waves() {
-            let fitted: Vec<(usize, Option<(PairLs, bool)>)> = wave
-                .par_iter()
-                .with_max_len(1)
-                .map(|&p| {
-                    self.workspaces.with(|ws| {
-                        let pair = &ls_pairs[p];
-                        let prob = self.ctx.problem(pair);
-                        let subs: &[usize] = if self.ctx.solver.nested_starts { &subs[p] } else { &[] };
-                        let nested: Vec<Vec<f64>> = subs
-                            .iter()
-                            .filter_map(|&s| {
-                                let (sub, _) = ls[s].as_ref()?;
-                                let (_, theta) = sub.start.as_ref()?;
-                                Some(estimate::embed(theta, ls_pairs[s].nb, ls_pairs[s].nf, &prob))
-                            })
-                            .collect();
-                        (p, self.pair_ls(pair, p, &nested, ws))
-                    })
+    /// The least-squares phase of pair `p` of `plan.ls_pairs()`, once its sub-models' are done;
+    /// None for a plan pair stopped before it.
+    fn pair_fit(&self, p: usize) -> Option<&(PairLs, bool)> {
+        self.ls[p].get().and_then(Option::as_ref)
+    }
+
+    fn add_rows(&self, rows: Vec<CellRow>) {
+        self.huber.lock().unwrap_or_else(|e| e.into_inner()).extend(rows);
+    }
+
+    /// Task [`Task::Ls`]: the least-squares phase of pair `p` of `plan.ls_pairs()`. The nested
+    /// starts are read from the sub-models' rows, as a resumed run reads them, so both give the
+    /// same bits.
+    fn least_squares(&self, p: usize) {
+        let fit = self.workspaces.with(|ws| {
+            let ls_pairs = &self.ls_pairs;
+            let pair = &ls_pairs[p];
+            let prob = self.ctx.problem(pair);
+            let subs: &[usize] = if self.ctx.solver.nested_starts { &self.subs[p] } else { &[] };
+            let nested: Vec<Vec<f64>> = subs
+                .iter()
+                .filter_map(|&s| {
+                    let (sub, _) = self.pair_fit(s)?;
+                    let (_, theta) = sub.start.as_ref()?;
+                    Some(estimate::embed(theta, ls_pairs[s].nb, ls_pairs[s].nf, &prob))
                 })
                 .collect();
-            for (p, fit) in fitted {
-                ls[p] = fit;
-            }
-        }
-        ls.truncate(self.plan.pairs.len());
-        ls
+            self.pair_ls(pair, p, &nested, ws)
+        });
+        // Each task runs once, so the cell is empty.
+        let _ = self.ls[p].set(fit);
     }
 
     /// The least-squares phase of one pair of `plan.ls_pairs()` (index `p`; beyond the plan's
@@ -335,91 +480,66 @@ impl Sweep<'_> {
         Some((PairLs::from_row(ctx, row, alternatives), p < own))
     }
 
-    /// Start strategy `ls`: every Huber cell on its own from its pair's least-squares fit, in
-    /// parallel over cells.
-    fn independent_cells(&self, ls: &LsPhase) -> Vec<CellRow> {
-        self.plan
-            .cells()
-            .par_iter()
-            .map(|&cell| {
-                self.workspaces.with(|ws| {
-                    if self.done.contains_key(&self.huber_key(cell)) || self.stopped() {
-                        return None;
-                    }
-                    // A pair without a fit here was skipped because of a stop.
-                    let (pair_ls, _) = ls[cell.pair].as_ref()?;
-                    let row = huber_cell(self.plan, self.ctx, &self.judge, pair_ls, cell, None, ws);
-                    (self.on_row)(&row);
-                    self.progress.inc(1);
-                    Some(row)
-                })
-            })
-            .flatten()
-            .collect()
+    /// Task [`Task::Cell`], start strategy `ls`: a Huber cell on its own from its pair's
+    /// least-squares fit.
+    fn independent_cell(&self, cell: Cell) {
+        if self.done.contains_key(&self.huber_key(cell)) || self.stopped() {
+            return;
+        }
+        // A pair without a fit here was skipped because of a stop.
+        let Some((pair_ls, _)) = self.pair_fit(cell.pair) else { return };
+        let row = self.workspaces.with(|ws| huber_cell(self.plan, self.ctx, &self.judge, pair_ls, cell, None, ws));
+        (self.on_row)(&row);
+        self.progress.inc(1);
+        self.add_rows(vec![row]);
     }
 
-    /// Start strategy `chains`: each pair's k values walked in increasing order
-    /// ([`chain_cells`]), in parallel over pairs, the costliest first.
-    fn k_chains(&self, ls: &LsPhase) -> Vec<CellRow> {
+    /// Task [`Task::Pair`], start strategy `chains`: pair `p`'s k values walked in increasing
+    /// order ([`chain_cells`]).
+    fn k_chain(&self, p: usize) {
+        let Some((pair_ls, _)) = self.pair_fit(p) else { return };
         let order = self.plan.k_ascending();
-        self.plan
-            .pairs_by_cost()
-            .par_iter()
-            .with_max_len(1)
-            .map(|&p| {
-                self.workspaces.with(|ws| {
-                    let Some((pair_ls, _)) = &ls[p] else { return Vec::new() };
-                    let keys: Vec<bool> = order
-                        .iter()
-                        .map(|&ki| self.done.contains_key(&self.huber_key(Cell { pair: p, k_index: ki })))
-                        .collect();
-                    if keys.iter().all(|&d| d) {
-                        return Vec::new();
-                    }
-                    let (plan, ctx, judge) = (self.plan, self.ctx, &self.judge);
-                    let stopped = || self.stopped();
-                    chain_cells(plan, ctx, judge, pair_ls, p, &order, &keys, ws, &stopped, self.on_row, self.progress)
-                })
-            })
-            .flatten()
-            .collect()
+        let keys: Vec<bool> =
+            order.iter().map(|&ki| self.done.contains_key(&self.huber_key(Cell { pair: p, k_index: ki }))).collect();
+        if keys.iter().all(|&d| d) {
+            return;
+        }
+        let (plan, ctx, judge) = (self.plan, self.ctx, &self.judge);
+        let stopped = || self.stopped();
+        let rows = self.workspaces.with(|ws| {
+            chain_cells(plan, ctx, judge, pair_ls, p, &order, &keys, ws, &stopped, self.on_row, self.progress)
+        });
+        self.add_rows(rows);
     }
 
-    /// Start strategies `neighbour` and `best`: each pair walked from the largest k down, a
-    /// cell starting from the previous cell's solution, in parallel over pairs.
-    fn neighbour_chains(&self, ls: &LsPhase) -> Vec<CellRow> {
-        let chain = self.plan.k_descending();
-        (0..self.plan.pairs.len())
-            .into_par_iter()
-            .map(|p| {
-                self.workspaces.with(|ws| {
-                    let mut out = Vec::new();
-                    let Some((pair_ls, _)) = &ls[p] else { return out };
-                    let mut prev: Option<Vec<f64>> = None;
-                    for &ki in &chain {
-                        let cell = Cell { pair: p, k_index: ki };
-                        let row = match self.done.get(&self.huber_key(cell)) {
-                            Some(row) => {
-                                prev = chain_theta(self.ctx, row).or(prev);
-                                continue;
-                            }
-                            None if self.stopped() => break,
-                            None => huber_cell(self.plan, self.ctx, &self.judge, pair_ls, cell, prev.as_deref(), ws),
-                        };
-                        // From the row, like a resumed chain: one path, the same bits.
-                        prev = chain_theta(self.ctx, &row).or(prev);
-                        (self.on_row)(&row);
-                        self.progress.inc(1);
-                        out.push(row);
+    /// Task [`Task::Pair`], start strategies `neighbour` and `best`: pair `p` walked from the
+    /// largest k down, a cell starting from the previous cell's solution.
+    fn neighbour_chain(&self, p: usize) {
+        let Some((pair_ls, _)) = self.pair_fit(p) else { return };
+        let rows = self.workspaces.with(|ws| {
+            let mut out = Vec::new();
+            let mut prev: Option<Vec<f64>> = None;
+            for ki in self.plan.k_descending() {
+                let cell = Cell { pair: p, k_index: ki };
+                let row = match self.done.get(&self.huber_key(cell)) {
+                    Some(row) => {
+                        prev = chain_theta(self.ctx, row).or(prev);
+                        continue;
                     }
-                    out
-                })
-            })
-            .flatten()
-            .collect()
+                    None if self.stopped() => break,
+                    None => huber_cell(self.plan, self.ctx, &self.judge, pair_ls, cell, prev.as_deref(), ws),
+                };
+                // From the row, like a resumed chain: one path, the same bits.
+                prev = chain_theta(self.ctx, &row).or(prev);
+                (self.on_row)(&row);
+                self.progress.inc(1);
+                out.push(row);
+            }
+            out
+        });
+        self.add_rows(rows);
     }
 }
-
 /// The Huber cells of pair `p` under the `chains` strategy, in increasing k (`order`), those
 /// an earlier run finished (`done[i]` for `order[i]`) left out; empty when stopped mid-walk
 /// (see [`walk_pair`]).
