@@ -14,9 +14,10 @@ Schedules (one column each):
            lower id), at most `live` tasks at once (the workspace cap of sweep::live_workspaces,
            from the profile's `workers`);
   no-cap   the same without the workspace cap (what the cap costs; shown when it binds);
-  waves    the schedule before issue 39: the least-squares phases in waves of equal nB + nF
-           with a barrier after each wave and before the Huber tasks, a wave's pairs in plan
-           order, the Huber tasks by nB + nF (largest first, ties plan order); no cap;
+  waves    the schedule before issue 39: a pair's least-squares phase one task (its own minima
+           and its finish), in waves of equal nB + nF with a barrier after each wave and before
+           the Huber tasks, a wave's pairs in plan order, the Huber tasks by nB + nF (largest
+           first, ties plan order); no cap;
   lpt      longest measured task first among the ready ones (the sweep's dependencies, no cap):
            what a perfect cost estimate would add to `sweep`.
 Also printed: the lower bound max(serial + critical path, serial + work / T) that no schedule
@@ -103,6 +104,12 @@ def waves(tasks):
     """The pre-issue-39 structure: (seconds, after, key) with zero-length barrier tasks."""
     seconds = [t["seconds"] for t in tasks]
     after = [list(t["after"]) for t in tasks]
+    # Then a pair's least-squares phase was one task: its own minima join the finish.
+    finish = {(t["nb"], t["nf"], t["delay"]): t["id"] for t in tasks if t["kind"] == "least_squares"}
+    for t in tasks:
+        if t["kind"] == "least_squares_own":
+            seconds[finish[(t["nb"], t["nf"], t["delay"])]] += seconds[t["id"]]
+            seconds[t["id"]] = 0.0
     ls = [t for t in tasks if t["kind"] == "least_squares"]
     rest = [t for t in tasks if t["kind"] != "least_squares"]
     by_size = {}

@@ -230,6 +230,10 @@ struct Sweep<'s> {
     /// stopped before it) and whether its `ls` row was computed in this run (else an earlier
     /// run's row was taken).
     ls: Vec<OnceLock<Option<(PairLs, bool)>>>,
+    /// Per pair of `ls_pairs`, its own minima until its least-squares phase takes them (None:
+    /// not found, or a panic while finding them; the phase then finds them itself).
+    /// With the seconds they took (part of the `ls` row's).
+    own: Vec<Mutex<Option<(estimate::OwnMinima, f64)>>>,
     /// The Huber rows computed so far.
     huber: Mutex<Vec<CellRow>>,
 }
@@ -237,8 +241,12 @@ struct Sweep<'s> {
 /// A unit of work of the pool: one task of the sweep's [`schedule::Graph`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Task {
-    /// The least-squares phase of pair `i` of `plan.ls_pairs()`; after its sub-models' (nested
-    /// starts, METHOD.md 5.2, step 2).
+    /// The least-squares minima of pair `i` of `plan.ls_pairs()` from its own starts
+    /// ([`estimate::own_minima`]): they need no other pair's fit.
+    LsOwn(usize),
+    /// The least-squares phase of pair `i` of `plan.ls_pairs()` finished from its own minima and
+    /// its sub-models' fits (nested starts, METHOD.md 5.2, step 2; [`estimate::finish_ls`]);
+    /// after those.
     Ls(usize),
     /// The Huber cells of plan pair `p` under `chains` ([`chain_cells`]) or `neighbour`/`best`
     /// (`Sweep::neighbour_chain`); after the pair's least-squares phase.
@@ -247,25 +255,39 @@ enum Task {
     Cell(Cell),
 }
 
-/// A pair's least-squares phase costs about this many of its Huber cells: it is what the
-/// schedule's priorities weigh (never the results). On the paper grid (`--profile`) a
-/// least-squares task took 8-12 times a Huber cell of its pair, on the 131 072-sample record
-/// 4 times.
-const LS_TASK_CELLS: u64 = 8;
+/// A pair's least-squares phase costs about this many of its Huber cells, its own minima
+/// [`LS_OWN_CELLS`] and the nested finish [`LS_NESTED_CELLS`]: what the schedule's priorities
+/// weigh (never the results). On the paper grid (`--profile`) a least-squares phase took 8-12
+/// times a Huber cell of its pair, on the 131 072-sample record 4 times.
+const LS_OWN_CELLS: u64 = 6;
+const LS_NESTED_CELLS: u64 = 2;
 
-/// The sweep's tasks, their dependencies and priorities: the least-squares phase of every pair
-/// after its sub-models', the Huber cells of a pair after its least-squares phase, and no other
+/// The sweep's tasks, their dependencies and priorities: every pair's own least-squares minima
+/// on their own, the least-squares phase of a pair finished after its own minima and its
+/// sub-models' phases, the Huber cells of a pair after its least-squares phase, and no other
 /// barrier; the ready task on the longest estimated path to the end first
 /// ([`schedule::Graph::with_bottom_levels`]), with a task's cost estimated as nB + nF per cell
-/// (per-iteration work grows with the parameter count) and [`LS_TASK_CELLS`] cells per
-/// least-squares phase.
+/// (per-iteration work grows with the parameter count), [`LS_OWN_CELLS`] and
+/// [`LS_NESTED_CELLS`] cells for the two parts of a least-squares phase. Task `i` is the
+/// finish of pair `i` of `plan.ls_pairs()` (as the sub-model indices are), the own minima
+/// follow them.
 fn tasks(plan: &Plan, nested_starts: bool) -> (Vec<Task>, schedule::Graph) {
     let ls_pairs = plan.ls_pairs();
     let subs = plan.ls_sub_models();
+    let n = ls_pairs.len();
     let size = |s: &Structure| (s.nb + s.nf) as u64;
-    let mut tasks: Vec<Task> = (0..ls_pairs.len()).map(Task::Ls).collect();
-    let mut after: Vec<Vec<usize>> = subs.into_iter().map(|s| if nested_starts { s } else { Vec::new() }).collect();
-    let mut cost: Vec<u64> = ls_pairs.iter().map(|s| LS_TASK_CELLS * size(s)).collect();
+    let mut tasks: Vec<Task> = (0..n).map(Task::Ls).chain((0..n).map(Task::LsOwn)).collect();
+    let mut after: Vec<Vec<usize>> = subs
+        .into_iter()
+        .enumerate()
+        .map(|(i, s)| std::iter::once(n + i).chain(if nested_starts { s } else { Vec::new() }).collect())
+        .chain((0..n).map(|_| Vec::new()))
+        .collect();
+    let mut cost: Vec<u64> = ls_pairs
+        .iter()
+        .map(|s| LS_NESTED_CELLS * size(s))
+        .chain(ls_pairs.iter().map(|s| LS_OWN_CELLS * size(s)))
+        .collect();
     match plan.start {
         StartStrategy::Ls => {
             for cell in plan.cells() {
@@ -296,7 +318,7 @@ pub const MIN_LIVE_WORKSPACES: usize = 4;
 /// [`Workspace::bytes`]`(rows)`)). A workspace holds record-length buffers
 /// ([`Workspace::RECORD_VECTORS`]); on a 1 000 000-sample record (750 000 estimation rows) 16
 /// of them took 1.45 GB against 216 MB for 2 (docs/PERFORMANCE.md, "Memory per worker"). The
-/// cap binds from about 350 000 rows on at 16 threads; the paper grid's 5 000 rows allow 559.
+/// cap binds from about 175 000 rows on at 16 threads; the paper grid's 5 000 rows allow 559.
 pub fn live_workspaces(threads: usize, rows: usize) -> usize {
     let budget = WORKSPACE_BUDGET_BYTES / Workspace::bytes(rows).max(1);
     threads.min(budget.max(MIN_LIVE_WORKSPACES)).max(1)
@@ -340,6 +362,7 @@ fn run_in_pool<'s>(
         ls_pairs: plan.ls_pairs(),
         subs: plan.ls_sub_models(),
         ls: plan.ls_pairs().iter().map(|_| OnceLock::new()).collect(),
+        own: plan.ls_pairs().iter().map(|_| Mutex::new(None)).collect(),
         huber: Mutex::new(Vec::new()),
     };
     progress.message("least squares and Huber cells");
@@ -347,6 +370,7 @@ fn run_in_pool<'s>(
     schedule::run(&graph, live, &|i| {
         let since = Instant::now();
         match tasks[i] {
+            Task::LsOwn(p) => sweep.own_minima(p),
             Task::Ls(p) => sweep.least_squares(p),
             Task::Pair(p) if plan.start == StartStrategy::Chains => sweep.k_chain(p),
             Task::Pair(p) => sweep.neighbour_chain(p),
@@ -374,6 +398,7 @@ fn task_times(plan: &Plan, tasks: &[Task], graph: &schedule::Graph) -> Vec<TaskT
         .enumerate()
         .map(|(id, task)| {
             let (kind, pair, k_index) = match *task {
+                Task::LsOwn(i) => ("least_squares_own", ls_pairs[i], None),
                 Task::Ls(i) => ("least_squares", ls_pairs[i], None),
                 Task::Pair(p) if plan.start == StartStrategy::Chains => ("chains", plan.pairs[p], None),
                 Task::Pair(p) => ("neighbour", plan.pairs[p], None),
@@ -411,6 +436,37 @@ impl Sweep<'_> {
 
     fn add_rows(&self, rows: Vec<CellRow>) {
         self.huber.lock().unwrap_or_else(|e| e.into_inner()).extend(rows);
+    }
+
+    /// Whether pair `p` of `ls_pairs` is fitted in this run: not when an earlier run finished
+    /// it and all its cells (its row is taken), nor after a stop, nor a sub-model kept for its
+    /// nested start when there are none.
+    fn fits_ls(&self, p: usize) -> bool {
+        let own = self.plan.pairs.len();
+        if p >= own {
+            return self.ctx.solver.nested_starts && !self.stopped();
+        }
+        let pair = &self.ls_pairs[p];
+        let all_done = self.done.contains_key(&RowKey::ls(pair))
+            && (0..self.plan.ks.len()).all(|k| self.done.contains_key(&self.huber_key(Cell { pair: p, k_index: k })));
+        !all_done && !self.stopped()
+    }
+
+    /// Task [`Task::LsOwn`]: pair `p`'s own least-squares minima, for its [`Task::Ls`].
+    fn own_minima(&self, p: usize) {
+        if !self.fits_ls(p) {
+            return;
+        }
+        let prob = self.ctx.problem(&self.ls_pairs[p]);
+        let alone = !self.ctx.solver.nested_starts || self.subs[p].is_empty();
+        let _span = Span::start(self.ctx.profile.as_deref(), Phase::LeastSquares);
+        let t = Instant::now();
+        let found = self.workspaces.with(|ws| {
+            ws.role = Role::LeastSquares;
+            catch_unwind(AssertUnwindSafe(|| estimate::own_minima(&prob, &self.ctx.solver, alone, ws))).ok()
+        });
+        let found = found.map(|o| (o, t.elapsed().as_secs_f64()));
+        *self.own[p].lock().unwrap_or_else(|e| e.into_inner()) = found;
     }
 
     /// Task [`Task::Ls`]: the least-squares phase of pair `p` of `plan.ls_pairs()`. The nested
@@ -462,10 +518,22 @@ impl Sweep<'_> {
         ws.role = Role::LeastSquares;
         // A resumed pair with cells left is fitted again for its extra Huber starts: the
         // least-squares phase is deterministic, so this reproduces the interrupted run.
-        let fit =
-            catch_unwind(AssertUnwindSafe(|| estimate::fit_ls_nested(&prob, &self.judge, &ctx.solver, nested, ws)));
+        // The own minima of task `LsOwn`, unless a sub-model's fit failed and took the nested
+        // starts down to none: `fit_ls_nested` then explores as for a pair alone.
+        let found = self.own[p].lock().unwrap_or_else(|e| e.into_inner()).take();
+        let (found, own_seconds) = match found.filter(|(o, _)| o.alone == nested.is_empty()) {
+            Some((o, seconds)) => (Some(o), seconds),
+            None => (None, 0.0),
+        };
+        let fit = catch_unwind(AssertUnwindSafe(|| {
+            let found = found.unwrap_or_else(|| estimate::own_minima(&prob, &ctx.solver, nested.is_empty(), ws));
+            estimate::finish_ls(&prob, &self.judge, &ctx.solver, found, nested, ws)
+        }));
         let (row, alternatives) = match fit {
-            Ok(fit) => (ctx.with_offset(CellRow::from_ls(&fit, t.elapsed().as_secs_f64())), fit.alternatives),
+            Ok(fit) => {
+                let seconds = own_seconds + t.elapsed().as_secs_f64();
+                (ctx.with_offset(CellRow::from_ls(&fit, seconds)), fit.alternatives)
+            }
             Err(e) => {
                 let reason = format!("least-squares phase panicked: {}", panic_message(e));
                 (CellRow::failed(RowKey::ls(pair), None, reason), Vec::new())
