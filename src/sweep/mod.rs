@@ -26,15 +26,22 @@
 //! out work while running cells finish.
 
 use crate::data::{Levels, Record};
-use crate::estimate::chains::{CellOutcome, PairProblem, panic_message, walk_pair};
-use crate::estimate::{self, InitialState, Judge, Problem, SolverOptions, StartKind, Workspace};
+use crate::estimate::chains::panic_message;
+use crate::estimate::{self, InitialState, Judge, Problem, SolverOptions, Workspace};
 use crate::job::StartStrategy;
 use crate::plan::{Cell, Plan, Structure};
-use crate::profile::{Phase, Profile, Role, Span, TaskTime, Workers};
+use crate::profile::{Phase, Profile, Role, Span, Workers};
 use crate::progress::Progress;
 use crate::schedule;
+
+mod cells;
+mod graph;
+
 use crate::spectral::SpectralEstimate;
 use crate::table::{CellRow, RowKey, sort_rows};
+use cells::{chain_cells, huber_cell};
+pub use graph::{MIN_LIVE_WORKSPACES, WORKSPACE_BUDGET_BYTES, live_workspaces};
+use graph::{Task, task_times, tasks};
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -238,92 +245,6 @@ struct Sweep<'s> {
     huber: Mutex<Vec<CellRow>>,
 }
 
-/// A unit of work of the pool: one task of the sweep's [`schedule::Graph`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Task {
-    /// The least-squares minima of pair `i` of `plan.ls_pairs()` from its own starts
-    /// ([`estimate::own_minima`]): they need no other pair's fit.
-    LsOwn(usize),
-    /// The least-squares phase of pair `i` of `plan.ls_pairs()` finished from its own minima and
-    /// its sub-models' fits (nested starts, METHOD.md 5.2, step 2; [`estimate::finish_ls`]);
-    /// after those.
-    Ls(usize),
-    /// The Huber cells of plan pair `p` under `chains` ([`chain_cells`]) or `neighbour`/`best`
-    /// (`Sweep::neighbour_chain`); after the pair's least-squares phase.
-    Pair(usize),
-    /// One Huber cell under `ls`; after its pair's least-squares phase.
-    Cell(Cell),
-}
-
-/// A pair's least-squares phase costs about this many of its Huber cells, its own minima
-/// [`LS_OWN_CELLS`] and the nested finish [`LS_NESTED_CELLS`]: what the schedule's priorities
-/// weigh (never the results). On the paper grid (`--profile`) a least-squares phase took 8-12
-/// times a Huber cell of its pair, on the 131 072-sample record 4 times.
-const LS_OWN_CELLS: u64 = 6;
-const LS_NESTED_CELLS: u64 = 2;
-
-/// The sweep's tasks, their dependencies and priorities: every pair's own least-squares minima
-/// on their own, the least-squares phase of a pair finished after its own minima and its
-/// sub-models' phases, the Huber cells of a pair after its least-squares phase, and no other
-/// barrier; the ready task on the longest estimated path to the end first
-/// ([`schedule::Graph::with_bottom_levels`]), with a task's cost estimated as nB + nF per cell
-/// (per-iteration work grows with the parameter count), [`LS_OWN_CELLS`] and
-/// [`LS_NESTED_CELLS`] cells for the two parts of a least-squares phase. Task `i` is the
-/// finish of pair `i` of `plan.ls_pairs()` (as the sub-model indices are), the own minima
-/// follow them.
-fn tasks(plan: &Plan, nested_starts: bool) -> (Vec<Task>, schedule::Graph) {
-    let ls_pairs = plan.ls_pairs();
-    let subs = plan.ls_sub_models();
-    let n = ls_pairs.len();
-    let size = |s: &Structure| (s.nb + s.nf) as u64;
-    let mut tasks: Vec<Task> = (0..n).map(Task::Ls).chain((0..n).map(Task::LsOwn)).collect();
-    let mut after: Vec<Vec<usize>> = subs
-        .into_iter()
-        .enumerate()
-        .map(|(i, s)| std::iter::once(n + i).chain(if nested_starts { s } else { Vec::new() }).collect())
-        .chain((0..n).map(|_| Vec::new()))
-        .collect();
-    let mut cost: Vec<u64> = ls_pairs
-        .iter()
-        .map(|s| LS_NESTED_CELLS * size(s))
-        .chain(ls_pairs.iter().map(|s| LS_OWN_CELLS * size(s)))
-        .collect();
-    match plan.start {
-        StartStrategy::Ls => {
-            for cell in plan.cells() {
-                tasks.push(Task::Cell(cell));
-                after.push(vec![cell.pair]);
-                cost.push(size(&plan.pairs[cell.pair]));
-            }
-        }
-        StartStrategy::Chains | StartStrategy::Neighbour | StartStrategy::Best => {
-            for (p, pair) in plan.pairs.iter().enumerate() {
-                tasks.push(Task::Pair(p));
-                after.push(vec![p]);
-                cost.push(plan.ks.len() as u64 * size(pair));
-            }
-        }
-    }
-    (tasks, schedule::Graph::with_bottom_levels(after, &cost))
-}
-
-/// The workspaces' budget on a long record ([`live_workspaces`]).
-pub const WORKSPACE_BUDGET_BYTES: usize = 512 << 20;
-/// Workspaces allowed whatever the budget. With M0 the memory outside the workspaces and w
-/// one workspace's, M0 + 4 w <= 2 (M0 + 2 w): at most twice the memory of 2 workers.
-pub const MIN_LIVE_WORKSPACES: usize = 4;
-
-/// How many tasks, so workspaces, may run at once on `threads` threads when the longest record
-/// has `rows` samples: min(threads, max([`MIN_LIVE_WORKSPACES`], [`WORKSPACE_BUDGET_BYTES`] /
-/// [`Workspace::bytes`]`(rows)`)). A workspace holds record-length buffers
-/// ([`Workspace::RECORD_VECTORS`]); on a 1 000 000-sample record (750 000 estimation rows) 16
-/// of them took 1.45 GB against 216 MB for 2 (docs/PERFORMANCE.md, "Memory per worker"). The
-/// cap binds from about 175 000 rows on at 16 threads; the paper grid's 5 000 rows allow 559.
-pub fn live_workspaces(threads: usize, rows: usize) -> usize {
-    let budget = WORKSPACE_BUDGET_BYTES / Workspace::bytes(rows).max(1);
-    threads.min(budget.max(MIN_LIVE_WORKSPACES)).max(1)
-}
-
 /// The sweep in the pool: every task of [`tasks`] as soon as those it reads from are done, on at
 /// most [`live_workspaces`] threads. Returns the rows computed in this run.
 fn run_in_pool<'s>(
@@ -388,35 +309,6 @@ fn run_in_pool<'s>(
     let mut rows: Vec<CellRow> = fresh_ls.filter(|(_, fresh)| *fresh).map(|(p, _)| p.row).collect();
     rows.extend(huber.into_inner().unwrap_or_else(|e| e.into_inner()));
     rows
-}
-
-/// The profile's view of the tasks ([`crate::profile::Schedule`]), before they run.
-fn task_times(plan: &Plan, tasks: &[Task], graph: &schedule::Graph) -> Vec<TaskTime> {
-    let ls_pairs = plan.ls_pairs();
-    tasks
-        .iter()
-        .enumerate()
-        .map(|(id, task)| {
-            let (kind, pair, k_index) = match *task {
-                Task::LsOwn(i) => ("least_squares_own", ls_pairs[i], None),
-                Task::Ls(i) => ("least_squares", ls_pairs[i], None),
-                Task::Pair(p) if plan.start == StartStrategy::Chains => ("chains", plan.pairs[p], None),
-                Task::Pair(p) => ("neighbour", plan.pairs[p], None),
-                Task::Cell(c) => ("cell", plan.pairs[c.pair], Some(c.k_index)),
-            };
-            TaskTime {
-                id,
-                kind,
-                nb: pair.nb,
-                nf: pair.nf,
-                delay: pair.delay,
-                k_index,
-                after: graph.after[id].clone(),
-                priority: graph.priority[id],
-                seconds: 0.0,
-            }
-        })
-        .collect()
 }
 
 impl Sweep<'_> {
@@ -606,116 +498,5 @@ impl Sweep<'_> {
             out
         });
         self.add_rows(rows);
-    }
-}
-/// The Huber cells of pair `p` under the `chains` strategy, in increasing k (`order`), those
-/// an earlier run finished (`done[i]` for `order[i]`) left out; empty when stopped mid-walk
-/// (see [`walk_pair`]).
-#[allow(clippy::too_many_arguments)]
-fn chain_cells(
-    plan: &Plan,
-    ctx: &Context,
-    judge: &Judge,
-    ls: &PairLs,
-    p: usize,
-    order: &[usize],
-    done: &[bool],
-    ws: &mut Workspace,
-    stopped: &dyn Fn() -> bool,
-    on_row: &(dyn Fn(&CellRow) + Sync),
-    progress: &Progress,
-) -> Vec<CellRow> {
-    let pair = plan.pairs[p];
-    let failed = |ki: usize, reason: String| CellRow::failed(RowKey::huber(&pair, ki), Some(plan.ks[ki]), reason);
-    let span = Span::start(ctx.profile.as_deref(), Phase::Huber);
-    let rows: Vec<CellRow> = match &ls.start {
-        None => {
-            let reason = ls.row.reason.as_deref().unwrap_or("it failed");
-            order
-                .iter()
-                .zip(done)
-                .filter(|(_, d)| !**d)
-                .map(|(&ki, _)| failed(ki, format!("no least-squares fit for this order pair: {reason}")))
-                .collect()
-        }
-        Some((sigma, theta_ls)) => {
-            let prob = ctx.problem(&pair);
-            let problem = PairProblem { prob: &prob, sigma: *sigma, judge, opts: &ctx.solver };
-            let ks: Vec<(usize, f64)> = order.iter().map(|&ki| (ki, plan.ks[ki])).collect();
-            let Some(cells) = walk_pair(&problem, theta_ls, &ls.alternatives, &ks, done, stopped, ws) else {
-                return Vec::new();
-            };
-            cells
-                .into_iter()
-                .map(|(ki, cell)| match cell {
-                    CellOutcome::Fit { fit, start, seconds } => {
-                        ctx.with_offset(CellRow::from_huber(&fit, &pair, *sigma, ki, start, seconds))
-                    }
-                    CellOutcome::Panicked(reason) => failed(ki, reason),
-                })
-                .collect()
-        }
-    };
-    drop(span);
-    for row in &rows {
-        on_row(row);
-        progress.inc(1);
-    }
-    rows
-}
-
-/// One Huber cell of the pair whose least-squares phase is `ls`, started from theta_LS and/or
-/// `neighbour` as the plan's start strategy says.
-fn huber_cell(
-    plan: &Plan,
-    ctx: &Context,
-    judge: &Judge,
-    ls: &PairLs,
-    cell: Cell,
-    neighbour: Option<&[f64]>,
-    ws: &mut Workspace,
-) -> CellRow {
-    let pair = plan.pairs[cell.pair];
-    let k = plan.ks[cell.k_index];
-    let failed = |reason: String| CellRow::failed(RowKey::huber(&pair, cell.k_index), Some(k), reason);
-    let Some((sigma, theta_ls)) = &ls.start else {
-        return failed(format!(
-            "no least-squares fit for this order pair: {}",
-            ls.row.reason.as_deref().unwrap_or("it failed")
-        ));
-    };
-    let prob = ctx.problem(&pair);
-    let t = Instant::now();
-    let _span = Span::start(ctx.profile.as_deref(), Phase::Huber);
-    ws.role = Role::Other;
-    let run = catch_unwind(AssertUnwindSafe(|| {
-        crate::failpoint::before_cell(pair.nb, pair.nf, cell.k_index);
-        // theta_LS, then the pair's extra starts; the lowest criterion wins, ties the earlier.
-        let from_ls = |ws: &mut Workspace| {
-            let (fit, which) =
-                estimate::fit_huber_starts(&prob, *sigma, k, theta_ls, &ls.alternatives, judge, &ctx.solver, ws);
-            (fit, StartKind::Ls { start: which })
-        };
-        // The neighbour's solution is a warm start (the minimum at the next k).
-        let warm = ctx.solver.huber_warm();
-        let fit_from =
-            |start: &[f64], ws: &mut Workspace| estimate::fit_huber(&prob, *sigma, k, start, judge, &warm, ws);
-        // `neighbour` is None for `ls` and for the first cell of a `neighbour`/`best` chain.
-        match neighbour {
-            None => from_ls(ws),
-            Some(nb) if plan.start == StartStrategy::Best => {
-                let a = from_ls(ws);
-                let b = fit_from(nb, ws);
-                // Ties keep the least-squares start.
-                if b.criterion < a.0.criterion { (b, StartKind::Neighbour) } else { a }
-            }
-            Some(nb) => (fit_from(nb, ws), StartKind::Neighbour),
-        }
-    }));
-    match run {
-        Ok((fit, start)) => {
-            ctx.with_offset(CellRow::from_huber(&fit, &pair, *sigma, cell.k_index, start, t.elapsed().as_secs_f64()))
-        }
-        Err(e) => failed(format!("Huber fit panicked: {}", panic_message(e))),
     }
 }
