@@ -287,9 +287,10 @@ fn run_in_pool<'s>(
         huber: Mutex::new(Vec::new()),
     };
     progress.message("least squares and Huber cells");
-    let t = Instant::now();
+    // Without a profile no clock is read.
+    let t = profile.map(|_| Instant::now());
     schedule::run(&graph, live, &|i| {
-        let since = Instant::now();
+        let since = profile.map(|_| Instant::now());
         match tasks[i] {
             Task::LsOwn(p) => sweep.own_minima(p),
             Task::Ls(p) => sweep.least_squares(p),
@@ -297,11 +298,11 @@ fn run_in_pool<'s>(
             Task::Pair(p) => sweep.neighbour_chain(p),
             Task::Cell(cell) => sweep.independent_cell(cell),
         }
-        if let Some(prof) = profile {
+        if let (Some(prof), Some(since)) = (profile, since) {
             prof.task(i, since);
         }
     });
-    if let Some(p) = profile {
+    if let (Some(p), Some(t)) = (profile, t) {
         p.tasks_wall(t.elapsed().as_secs_f64());
     }
     let Sweep { ls, huber, .. } = sweep;
