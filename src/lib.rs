@@ -22,6 +22,7 @@ pub mod reduce;
 pub mod report;
 pub mod results;
 pub(crate) mod rng;
+pub mod schedule;
 pub mod shard;
 pub mod simulate;
 pub mod slurm;

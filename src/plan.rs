@@ -3,8 +3,9 @@
 //!
 //! Order is fixed and independent of threads: pairs in (delay, nB, nF) order, k in the job's
 //! order. The least-squares phase depends on the pair and, through its nested starts, on its
-//! sub-models' fits (METHOD.md 5.2), so the pairs are fitted in waves of nB + nF; the pair is
-//! the unit that owns its least-squares fit and the cells of a pair share it.
+//! sub-models' fits (METHOD.md 5.2), so a pair's is finished after theirs
+//! ([`Plan::ls_sub_models`]); the pair is the unit that owns its least-squares fit and the
+//! cells of a pair share it.
 
 use crate::job::{StartStrategy, ValidJob};
 
@@ -107,7 +108,9 @@ impl Plan {
     }
 
     /// Indices into [`Plan::ls_pairs`] in waves of equal nB + nF, increasing: every pair's
-    /// sub-models are in an earlier wave, and the pairs of one wave are independent.
+    /// sub-models are in an earlier wave, and the pairs of one wave are independent (the order
+    /// of a serial walk over the pairs; the sweep itself waits for each pair's own sub-models
+    /// only, `sweep::tasks`).
     pub fn ls_waves(&self) -> Vec<Vec<usize>> {
         let all = self.ls_pairs();
         let mut waves: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
@@ -132,14 +135,6 @@ impl Plan {
     /// All cells, pair-major.
     pub fn cells(&self) -> Vec<Cell> {
         (0..self.pairs.len()).flat_map(|p| (0..self.ks.len()).map(move |k| Cell { pair: p, k_index: k })).collect()
-    }
-
-    /// Structure indices by decreasing estimated cost (nB + nF; ties: plan order), the order the
-    /// sweep hands pairs to its workers.
-    pub fn pairs_by_cost(&self) -> Vec<usize> {
-        let mut idx: Vec<usize> = (0..self.pairs.len()).collect();
-        idx.sort_by_key(|&p| (std::cmp::Reverse(self.pairs[p].nb + self.pairs[p].nf), p));
-        idx
     }
 
     /// k indices in increasing k (ties: grid order): the order of the `chains` strategy.

@@ -8,8 +8,13 @@
 //! concurrent runs in one process do not mix. Times are worker seconds (summed over the
 //! threads); with T busy threads a phase's wall share is about its worker seconds / T. A run
 //! without `--profile` carries no profile and pays nothing.
+//!
+//! The profile also lists the tasks the worker pool ran ([`Schedule`]): per task its kind, its
+//! pair, the tasks it waited for and its worker seconds, and the run's serial parts in wall
+//! seconds, so that `benches/replay.py` can replay the run on other worker counts.
 
 use serde::Serialize;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
@@ -109,6 +114,7 @@ pub struct Profile {
     iterations: [AtomicU64; ROLES],
     solver_nanos: [AtomicU64; ROLES],
     phase_nanos: [AtomicU64; PHASES],
+    schedule: Mutex<Schedule>,
 }
 
 fn nanos(since: Instant) -> u64 {
@@ -134,6 +140,36 @@ impl Profile {
         self.phase_nanos[phase as usize].fetch_add(nanos(since), Ordering::Relaxed);
     }
 
+    /// The sweep's tasks before they run (their `seconds` 0), and how many may run at once.
+    pub fn plan_tasks(&self, tasks: Vec<TaskTime>, workers: Workers) {
+        let mut s = self.schedule.lock().unwrap_or_else(|e| e.into_inner());
+        s.tasks = tasks;
+        s.workers = Some(workers);
+    }
+
+    /// Task `id` of [`Profile::plan_tasks`] took the time from `since` to now.
+    pub fn task(&self, id: usize, since: Instant) {
+        let seconds = since.elapsed().as_secs_f64();
+        let mut s = self.schedule.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(t) = s.tasks.get_mut(id) {
+            t.seconds += seconds;
+        }
+    }
+
+    /// `seconds` of wall time that no worker shared, in run order.
+    pub fn serial(&self, part: &'static str, seconds: f64) {
+        let mut s = self.schedule.lock().unwrap_or_else(|e| e.into_inner());
+        match s.serial.iter_mut().find(|p| p.part == part) {
+            Some(p) => p.seconds += seconds,
+            None => s.serial.push(PartTime { part, seconds }),
+        }
+    }
+
+    /// The wall time of the pool's tasks, from the first task's start to the last one's end.
+    pub fn tasks_wall(&self, seconds: f64) {
+        self.schedule.lock().unwrap_or_else(|e| e.into_inner()).wall_seconds += seconds;
+    }
+
     /// The counters as they are now.
     pub fn report(&self) -> ProfileReport {
         let get = |a: &AtomicU64| a.load(Ordering::Relaxed);
@@ -153,7 +189,8 @@ impl Profile {
             .iter()
             .map(|&p| PhaseTime { phase: p.as_str(), seconds: get(&self.phase_nanos[p as usize]) as f64 * 1e-9 })
             .collect();
-        ProfileReport { roles, phases }
+        let schedule = self.schedule.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        ProfileReport { roles, phases, schedule }
     }
 }
 
@@ -197,11 +234,73 @@ pub struct PhaseTime {
     pub seconds: f64,
 }
 
+/// One task of the worker pool: a unit of work one worker runs from start to end.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct TaskTime {
+    /// Its index in [`Schedule::tasks`].
+    pub id: usize,
+    /// `least_squares` (a pair's least-squares phase), `chains` (a pair's Huber cells under the
+    /// `chains` strategy: the walk, the backward pass, the whole-record refits, the evidence),
+    /// `neighbour` (a pair's Huber cells under `neighbour`/`best`) or `cell` (one Huber cell
+    /// under `ls`).
+    pub kind: &'static str,
+    pub nb: usize,
+    pub nf: usize,
+    pub delay: usize,
+    /// The cell's k index (kind `cell` only).
+    pub k_index: Option<usize>,
+    /// The ids of the tasks whose results it reads: it starts once they are done.
+    pub after: Vec<usize>,
+    /// The sweep's priority among ready tasks (larger first; ties: the lower id): the
+    /// estimated cost of the longest path from the task to the end of the sweep.
+    pub priority: u64,
+    /// Worker seconds (0 when it did not run: stopped, or taken from a checkpoint).
+    pub seconds: f64,
+}
+
+/// How many workspaces, so tasks, may run at once ([`crate::sweep::live_workspaces`]).
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct Workers {
+    /// The pool's threads (`--threads`, or the cores).
+    pub threads: usize,
+    /// Tasks that ran at once at most: min(threads, cap).
+    pub live: usize,
+    /// Samples of the longest record a workspace holds buffers of.
+    pub record_rows: usize,
+    /// The bytes a workspace is budgeted for on that record.
+    pub workspace_bytes: usize,
+    /// The workspaces' budget, and the count allowed whatever it says: cap =
+    /// max(min_live, budget_bytes / workspace_bytes).
+    pub budget_bytes: usize,
+    pub min_live: usize,
+}
+
+/// Wall seconds of a serial part of the run.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct PartTime {
+    pub part: &'static str,
+    pub seconds: f64,
+}
+
+/// The sweep's tasks and the run's serial parts, for a replay on other worker counts.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct Schedule {
+    pub workers: Option<Workers>,
+    pub tasks: Vec<TaskTime>,
+    /// In run order: `read` (reading and checking the job and records, the spectrum left out),
+    /// `spectrum`, `setup` (checkpoint, plan, pool), `sweep_serial` (the sweep's wall outside
+    /// its tasks: collecting and sorting the rows) and `write` (reducing and writing).
+    pub serial: Vec<PartTime>,
+    /// Wall seconds from the first task's start to the last task's end.
+    pub wall_seconds: f64,
+}
+
 /// What `--profile` writes (JSON) and prints.
 #[derive(Clone, Debug, Serialize)]
 pub struct ProfileReport {
     pub roles: Vec<RoleCount>,
     pub phases: Vec<PhaseTime>,
+    pub schedule: Schedule,
 }
 
 impl ProfileReport {
@@ -235,6 +334,21 @@ impl ProfileReport {
         s.push_str("time by phase (s; workers' summed for the phases inside the sweep):\n");
         for p in &self.phases {
             let _ = writeln!(s, "  {:<20} {:>9.3}", p.phase, p.seconds);
+        }
+        let tasks = &self.schedule.tasks;
+        if !tasks.is_empty() {
+            let worker: f64 = tasks.iter().map(|t| t.seconds).sum();
+            let longest = tasks.iter().map(|t| t.seconds).fold(0.0, f64::max);
+            let serial: f64 = self.schedule.serial.iter().map(|p| p.seconds).sum();
+            let _ = writeln!(
+                s,
+                "tasks: {} ({:.3} worker s, the longest {:.3} s) in {:.3} wall s; serial parts {:.3} s",
+                tasks.len(),
+                worker,
+                longest,
+                self.schedule.wall_seconds,
+                serial
+            );
         }
         s
     }

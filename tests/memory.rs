@@ -14,7 +14,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// N-length f64 vectors a worker may hold at once (`estimate::Workspace` documents them).
-const BUDGET: usize = 24;
+const BUDGET: usize = Workspace::RECORD_VECTORS;
 
 struct Tracking;
 

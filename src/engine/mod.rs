@@ -34,7 +34,7 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 mod beyond;
 mod export_model;
@@ -281,8 +281,12 @@ fn run_loaded(
     let reading = Span::start(profile.as_deref(), Phase::Read);
     let p = prepare_job(load()?)?;
     drop(reading);
+    let setup = Instant::now();
     if let Some(prof) = &profile {
         prof.add_seconds(Phase::Spectrum, p.spectrum_seconds);
+        let read = prof.report().seconds(Phase::Read);
+        prof.serial("read", (read - p.spectrum_seconds).max(0.0));
+        prof.serial("spectrum", p.spectrum_seconds);
     }
     let out = p.job.output().to_path_buf();
     let (plan, label) = match opts.shard {
@@ -347,6 +351,9 @@ fn run_loaded(
         };
         let control = sweep::Control { done: existing.rows, on_row: &on_row, stop };
         let ctx = sweep::Context { profile: profile.clone(), ..p.context() };
+        if let Some(prof) = &profile {
+            prof.serial("setup", setup.elapsed().as_secs_f64());
+        }
         let _span = Span::start(profile.as_deref(), Phase::Sweep);
         sweep::run(&plan, &ctx, opts.threads, &progress, control)
     };
@@ -388,9 +395,12 @@ fn run_loaded(
 
     // A whole run: the results, then the checkpoint has served (if deleting it fails, a rerun
     // finds every cell done and merges again), then the report.
-    let writing = Span::start(profile.as_deref(), Phase::Write);
+    let writing = Instant::now();
     let selection = write_results(&out, &p.job, &outcome.rows, Some(&p.inputs), opts.threads)?;
-    drop(writing);
+    if let Some(prof) = &profile {
+        prof.add(Phase::Write, writing);
+        prof.serial("write", writing.elapsed().as_secs_f64());
+    }
     result.profile = profile.as_ref().map(|p| p.report());
     crate::failpoint::before_checkpoint_removal();
     result.cleanup = checkpoint::remove(&out).err();

@@ -32,31 +32,71 @@ pub fn fit_ls_nested(
     nested: &[Vec<f64>],
     ws: &mut Workspace,
 ) -> LsFit {
+    let own = own_minima(prob, opts, nested.is_empty(), ws);
+    finish_ls(prob, judge, opts, own, nested, ws)
+}
+
+/// What a pair's least-squares phase finds from its own starts ([`own_minima`]), before the
+/// nested starts: it needs no other pair's fit, so the sweep runs it while the sub-models are
+/// still being fitted, and [`finish_ls`] adds the nested starts. Together they are
+/// [`fit_ls_nested`], bit for bit.
+#[derive(Clone, Debug)]
+pub struct OwnMinima {
+    sols: Vec<Solution>,
+    /// On a long record, the head's runners-up (Huber starts as the head left them).
+    head_others: Option<Vec<Vec<f64>>>,
+    /// Found for a pair without nested starts (`ls_minima`'s `alone`).
+    pub alone: bool,
+}
+
+/// The pair's own least-squares minima (guesses, detours; on a long record explored on the head
+/// and the best minimised on the whole record), `alone` when there will be no nested starts.
+pub fn own_minima(prob: &Problem, opts: &SolverOptions, alone: bool, ws: &mut Workspace) -> OwnMinima {
     // On a long record the starts of the pair itself (guesses, detours) are explored on the
     // head, and only the head's best minimum is minimised again on the whole record; the
     // runners-up are Huber starts as the head left them (the chains walk on the head anyway).
     // Minimising them too on the whole record never changed theta_LS or a cell (two
     // 131 072-sample records: all 704 criteria the same to 1e-6) and cost 11-14 % of the run.
+    // Warm, as the cells' whole-record fits from the head's minima: the head's best is near the
+    // whole record's minimum (64 such fits on a 131 072-sample record: 897 -> 491 iterations,
+    // every criterion within a relative 5e-10).
+    match exploration_head(prob, opts) {
+        Some(head) => {
+            let found = ls_minima(&head, opts, alone, ws);
+            let (best, others) = ranked(&found);
+            let others: Vec<Vec<f64>> = others.iter().map(|s| s.theta.clone()).collect();
+            let sols = vec![solver::minimise(prob, Loss::LeastSquares, &best.theta, &warm(opts), ws)];
+            OwnMinima { sols, head_others: Some(others), alone }
+        }
+        None => OwnMinima { sols: ls_minima(prob, opts, alone, ws), head_others: None, alone },
+    }
+}
+
+fn warm(opts: &SolverOptions) -> SolverOptions {
+    SolverOptions { lambda0: opts.warm_lambda0, ..opts.clone() }
+}
+
+/// The pair's least-squares fit from its own minima `own` and the `nested` starts (see
+/// [`fit_ls_nested`]); `own` must have been found with `alone = nested.is_empty()`.
+pub fn finish_ls(
+    prob: &Problem,
+    judge: &Judge,
+    opts: &SolverOptions,
+    own: OwnMinima,
+    nested: &[Vec<f64>],
+    ws: &mut Workspace,
+) -> LsFit {
+    assert_eq!(own.alone, nested.is_empty(), "own minima found for another set of nested starts");
+    let OwnMinima { mut sols, head_others, .. } = own;
     // The nested starts are minimised on the whole record itself, warm: they are the
     // sub-models' whole-record minima, so the pair's fit stays no worse than its sub-models'.
     // Explored on the head with the rest, they lost that: on a 65 536-sample record with
     // spikes (paper grid, 16 384-row head) 75 of 96 least-squares fits and 758 of 768 Huber
     // cells were no worse than the scipy peer's; minimised on the whole record 94 and 768
-    // (cold) and 96 and 768 (warm).
-    // Both warm, as the cells' whole-record fits from the head's minima: the head's best is near the
-    // whole record's minimum (64 such fits on a 131 072-sample record: 897 -> 491 iterations,
-    // every criterion within a relative 5e-10), and a nested start is at a minimum of the
+    // (cold) and 96 and 768 (warm). Warm because a nested start is at a minimum of the
     // sub-model.
-    let warm = SolverOptions { lambda0: opts.warm_lambda0, ..opts.clone() };
-    let (mut sols, head_others, nested_opts) = match exploration_head(prob, opts) {
-        Some(head) => {
-            let found = ls_minima(&head, opts, nested.is_empty(), ws);
-            let (best, others) = ranked(&found);
-            let others: Vec<Vec<f64>> = others.iter().map(|s| s.theta.clone()).collect();
-            (vec![solver::minimise(prob, Loss::LeastSquares, &best.theta, &warm, ws)], Some(others), &warm)
-        }
-        None => (ls_minima(prob, opts, nested.is_empty(), ws), None, opts),
-    };
+    let warm = warm(opts);
+    let nested_opts = if head_others.is_some() { &warm } else { opts };
     // The sub-models' minima, last, so that the detours start where they did without them. At
     // high orders the per-pair starts often end in a local minimum worse than a sub-model's (on
     // the paper grid, in 46 of 172 neighbouring pairs the larger model's criterion was higher,

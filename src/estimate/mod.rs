@@ -60,7 +60,7 @@ pub use chains::{ChainWalk, Chains, PairProblem, fit_huber_multi, fit_huber_star
 pub use fit::{Assessment, HuberFit, Judge, LsFit, StartKind, embed, fit_huber, fit_ls_from, fit_percent, theta_of};
 pub use huber::Loss;
 pub use initial_state::InitialState;
-pub use least_squares::{exploration_head, fit_ls, fit_ls_nested};
+pub use least_squares::{OwnMinima, exploration_head, finish_ls, fit_ls, fit_ls_nested, own_minima};
 pub use options::{HuberHessian, SolverMethod, SolverOptions, Termination};
 pub use problem::{Problem, Solution};
 pub use single::{OneFit, fit_one};

@@ -6,7 +6,7 @@ use super::problem::{Problem, output_filtered};
 /// Per-worker buffers, reused across fits of any size.
 ///
 /// Memory is O(N) with a fixed count of record-length buffers (issue 19; checked by
-/// `tests/memory.rs` against a budget of 24 at N = 16 384 and 131 072, the record itself
+/// `tests/memory.rs` against a budget of [`Workspace::RECORD_VECTORS`] at N = 16 384 and 131 072, the record itself
 /// shared by all workers and not counted):
 /// - the solver: `yhat`, `xu`, `xy` and their trial copies, `r`, `w` (8);
 /// - the normal equations, of the solver and of the separable inner problem: each a row list
@@ -54,6 +54,16 @@ pub struct Workspace {
 }
 
 impl Workspace {
+    /// Record-length f64 vectors a workspace may hold at its peak (the list above; checked by
+    /// `tests/memory.rs`): the budget of one worker, [`Workspace::bytes`].
+    pub const RECORD_VECTORS: usize = 24;
+
+    /// The bytes a workspace is budgeted for on a record of `rows` samples (the sweep's cap on
+    /// live workspaces, `sweep::live_workspaces`).
+    pub const fn bytes(rows: usize) -> usize {
+        Self::RECORD_VECTORS * std::mem::size_of::<f64>() * rows
+    }
+
     pub fn new() -> Self {
         Self::default()
     }

@@ -1,0 +1,184 @@
+//! The sweep as a graph of tasks for [`schedule::run`]: what the tasks are, what each waits
+//! for, their priorities, and how many may run at once.
+
+use crate::estimate::Workspace;
+use crate::job::StartStrategy;
+use crate::plan::{Cell, Plan, Structure};
+use crate::profile::TaskTime;
+use crate::schedule;
+
+/// A unit of work of the pool: one task of the sweep's [`schedule::Graph`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Task {
+    /// The least-squares minima of pair `i` of `plan.ls_pairs()` from its own starts
+    /// (`estimate::own_minima`): they need no other pair's fit.
+    LsOwn(usize),
+    /// The least-squares phase of pair `i` of `plan.ls_pairs()` finished from its own minima and
+    /// its sub-models' fits (nested starts, METHOD.md 5.2, step 2; `estimate::finish_ls`);
+    /// after those.
+    Ls(usize),
+    /// The Huber cells of plan pair `p` under `chains` (`cells::chain_cells`) or `neighbour`/`best`
+    /// (`Sweep::neighbour_chain`); after the pair's least-squares phase.
+    Pair(usize),
+    /// One Huber cell under `ls`; after its pair's least-squares phase.
+    Cell(Cell),
+}
+
+/// A pair's least-squares phase costs about this many of its Huber cells, its own minima
+/// [`LS_OWN_CELLS`] and the nested finish [`LS_NESTED_CELLS`]: what the schedule's priorities
+/// weigh (never the results). On the paper grid (`--profile`) a least-squares phase took 8-12
+/// times a Huber cell of its pair, on the 131 072-sample record 4 times.
+const LS_OWN_CELLS: u64 = 6;
+const LS_NESTED_CELLS: u64 = 2;
+
+/// The sweep's tasks, their dependencies and priorities: every pair's own least-squares minima
+/// on their own, the least-squares phase of a pair finished after its own minima and its
+/// sub-models' phases, the Huber cells of a pair after its least-squares phase, and no other
+/// barrier; the ready task on the longest estimated path to the end first
+/// ([`schedule::Graph::with_bottom_levels`]), with a task's cost estimated as nB + nF per cell
+/// (per-iteration work grows with the parameter count), [`LS_OWN_CELLS`] and
+/// [`LS_NESTED_CELLS`] cells for the two parts of a least-squares phase. Task `i` is the
+/// finish of pair `i` of `plan.ls_pairs()` (as the sub-model indices are), the own minima
+/// follow them.
+pub(super) fn tasks(plan: &Plan, nested_starts: bool) -> (Vec<Task>, schedule::Graph) {
+    let ls_pairs = plan.ls_pairs();
+    let subs = plan.ls_sub_models();
+    let n = ls_pairs.len();
+    let size = |s: &Structure| (s.nb + s.nf) as u64;
+    let mut tasks: Vec<Task> = (0..n).map(Task::Ls).chain((0..n).map(Task::LsOwn)).collect();
+    let mut after: Vec<Vec<usize>> = subs
+        .into_iter()
+        .enumerate()
+        .map(|(i, s)| std::iter::once(n + i).chain(if nested_starts { s } else { Vec::new() }).collect())
+        .chain((0..n).map(|_| Vec::new()))
+        .collect();
+    let mut cost: Vec<u64> = ls_pairs
+        .iter()
+        .map(|s| LS_NESTED_CELLS * size(s))
+        .chain(ls_pairs.iter().map(|s| LS_OWN_CELLS * size(s)))
+        .collect();
+    match plan.start {
+        StartStrategy::Ls => {
+            for cell in plan.cells() {
+                tasks.push(Task::Cell(cell));
+                after.push(vec![cell.pair]);
+                cost.push(size(&plan.pairs[cell.pair]));
+            }
+        }
+        StartStrategy::Chains | StartStrategy::Neighbour | StartStrategy::Best => {
+            for (p, pair) in plan.pairs.iter().enumerate() {
+                tasks.push(Task::Pair(p));
+                after.push(vec![p]);
+                cost.push(plan.ks.len() as u64 * size(pair));
+            }
+        }
+    }
+    (tasks, schedule::Graph::with_bottom_levels(after, &cost))
+}
+
+/// The workspaces' budget on a long record ([`live_workspaces`]).
+pub const WORKSPACE_BUDGET_BYTES: usize = 512 << 20;
+/// Workspaces allowed whatever the budget. With M0 the memory outside the workspaces and w
+/// one workspace's, M0 + 4 w <= 2 (M0 + 2 w): at most twice the memory of 2 workers.
+pub const MIN_LIVE_WORKSPACES: usize = 4;
+
+/// How many tasks, so workspaces, may run at once on `threads` threads when the longest record
+/// has `rows` samples: min(threads, max([`MIN_LIVE_WORKSPACES`], [`WORKSPACE_BUDGET_BYTES`] /
+/// [`Workspace::bytes`]`(rows)`)). A workspace holds record-length buffers
+/// ([`Workspace::RECORD_VECTORS`]); on a 1 000 000-sample record (750 000 estimation rows) 16
+/// of them took 1.45 GB against 216 MB for 2 (docs/PERFORMANCE.md, "Memory per worker"). The
+/// cap binds from about 175 000 rows on at 16 threads; the paper grid's 5 000 rows allow 559.
+pub fn live_workspaces(threads: usize, rows: usize) -> usize {
+    let budget = WORKSPACE_BUDGET_BYTES / Workspace::bytes(rows).max(1);
+    threads.min(budget.max(MIN_LIVE_WORKSPACES)).max(1)
+}
+
+/// The profile's view of the tasks ([`crate::profile::Schedule`]), before they run.
+pub(super) fn task_times(plan: &Plan, tasks: &[Task], graph: &schedule::Graph) -> Vec<TaskTime> {
+    let ls_pairs = plan.ls_pairs();
+    tasks
+        .iter()
+        .enumerate()
+        .map(|(id, task)| {
+            let (kind, pair, k_index) = match *task {
+                Task::LsOwn(i) => ("least_squares_own", ls_pairs[i], None),
+                Task::Ls(i) => ("least_squares", ls_pairs[i], None),
+                Task::Pair(p) if plan.start == StartStrategy::Chains => ("chains", plan.pairs[p], None),
+                Task::Pair(p) => ("neighbour", plan.pairs[p], None),
+                Task::Cell(c) => ("cell", plan.pairs[c.pair], Some(c.k_index)),
+            };
+            TaskTime {
+                id,
+                kind,
+                nb: pair.nb,
+                nf: pair.nf,
+                delay: pair.delay,
+                k_index,
+                after: graph.after[id].clone(),
+                priority: graph.priority[id],
+                seconds: 0.0,
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_workspace_cap_keeps_16_workers_within_twice_the_memory_of_2() {
+        // The paper grid's records: no cap.
+        assert_eq!(live_workspaces(16, 5000), 16);
+        assert_eq!(live_workspaces(2, 5000), 2);
+        // The 1M-sample record's 750 000 estimation rows: the minimum, 4.
+        assert_eq!(live_workspaces(16, 750_000), MIN_LIVE_WORKSPACES);
+        assert_eq!(live_workspaces(2, 750_000), 2);
+        // Where the budget binds at 16 threads.
+        let rows = WORKSPACE_BUDGET_BYTES / Workspace::bytes(16);
+        assert_eq!(live_workspaces(16, rows), 16);
+        assert!(live_workspaces(16, rows + 1) < 16);
+        // Whatever the record, the live workspaces take at most the budget or 4 workspaces:
+        // with M0 the rest, M0 + 4 w <= 2 (M0 + 2 w).
+        for rows in [1, 1000, 100_000, 1 << 20, 1 << 26] {
+            let live = live_workspaces(1024, rows);
+            assert!(live * Workspace::bytes(rows) <= WORKSPACE_BUDGET_BYTES || live == MIN_LIVE_WORKSPACES);
+        }
+        assert_eq!(live_workspaces(1, 1 << 26), 1);
+    }
+
+    #[test]
+    fn every_task_comes_after_what_it_reads() {
+        let plan = Plan {
+            pairs: (1..=3).flat_map(|nb| (1..=3).map(move |nf| Structure { nb, nf, delay: 1 })).collect(),
+            ks: vec![0.1, 1.0],
+            start: StartStrategy::Chains,
+            ls_support: Vec::new(),
+        };
+        let n = plan.pairs.len();
+        let (tasks, graph) = tasks(&plan, true);
+        assert_eq!(tasks.len(), 3 * n);
+        let subs = plan.ls_sub_models();
+        for (i, t) in tasks.iter().enumerate() {
+            let mut expected = match *t {
+                Task::LsOwn(_) => vec![],
+                Task::Ls(p) => std::iter::once(n + p).chain(subs[p].iter().copied()).collect(),
+                Task::Pair(p) => vec![p],
+                Task::Cell(c) => vec![c.pair],
+            };
+            let mut after = graph.after[i].clone();
+            expected.sort();
+            after.sort();
+            assert_eq!(after, expected, "{t:?}");
+        }
+        // A single worker runs every task, those on the longest path (own minima, then the
+        // chain of least-squares finishes up the grid) before the Huber walks.
+        let order = graph.serial_order();
+        assert_eq!(order.len(), tasks.len());
+        assert!(matches!(tasks[order[0]], Task::LsOwn(_)));
+        assert!(matches!(tasks[*order.last().unwrap()], Task::Pair(_)));
+        // Without nested starts the least-squares finishes wait for their own minima only.
+        let (_, alone) = super::tasks(&plan, false);
+        assert!((0..n).all(|p| alone.after[p] == [n + p]));
+    }
+}
