@@ -14,6 +14,7 @@ pub mod failpoint;
 pub mod job;
 pub mod kernels;
 pub mod lock;
+pub(crate) mod names;
 pub mod oe;
 pub mod plan;
 pub mod profile;

@@ -29,8 +29,7 @@ use faer::Mat;
 use faer::linalg::solvers::DenseSolveCore;
 
 /// How the discrete model is mapped to continuous time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Method {
     /// The inverse of the zero-order hold: the continuous system that samples to the model.
     Zoh,
@@ -38,23 +37,12 @@ pub enum Method {
     Tustin,
 }
 
-impl Method {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Method::Zoh => "zoh",
-            Method::Tustin => "tustin",
-        }
-    }
-}
+crate::names::names!(Method { Zoh = "zoh", Tustin = "tustin" });
 
 impl std::str::FromStr for Method {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "zoh" => Ok(Method::Zoh),
-            "tustin" => Ok(Method::Tustin),
-            _ => Err(format!("method {s:?}: expected zoh or tustin")),
-        }
+        Method::from_name(s).ok_or_else(|| format!("method {s:?}: expected {}", Method::NAMES.join(" or ")))
     }
 }
 
