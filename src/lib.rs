@@ -6,6 +6,7 @@
 pub mod checkpoint;
 pub mod cli;
 pub mod data;
+pub mod dense;
 pub mod engine;
 pub mod error;
 pub mod estimate;
@@ -14,6 +15,7 @@ pub mod failpoint;
 pub mod job;
 pub mod kernels;
 pub mod lock;
+pub(crate) mod names;
 pub mod oe;
 pub mod plan;
 pub mod profile;

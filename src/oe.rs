@@ -151,10 +151,7 @@ fn companion_eigenvalues(f: &[f64]) -> Vec<(f64, f64)> {
             0.0
         }
     });
-    match c.eigenvalues() {
-        Ok(ev) => ev.iter().map(|z| (z.re, z.im)).collect(),
-        Err(_) => Vec::new(),
-    }
+    crate::dense::eigenvalues(c.as_ref()).unwrap_or_default()
 }
 
 /// Complex arithmetic on (re, im) pairs, just what the root finder needs.

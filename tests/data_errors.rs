@@ -2,6 +2,8 @@
 //! row and the column where that applies). These tests pin the wording that users and the docs
 //! rely on, for CSV and Parquet, and the model-size checks of `check_for_model`.
 
+mod common;
+
 use std::fs;
 use std::path::{Path, PathBuf};
 
@@ -204,6 +206,24 @@ fn parquet_no_rows_and_garbage() {
     let p = dir.path().join("garbage.parquet");
     fs::write(&p, "u,y\n1,2\n").unwrap();
     err_uy(&p, "not a readable Parquet file");
+}
+
+/// A data page header that declares a negative value count (polars 0.55 reserved 2^61 bytes for
+/// it and aborted the process) is refused before polars decodes the page, for each column read.
+#[test]
+fn parquet_page_header_with_a_negative_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.parquet");
+    write_parquet(&good, vec![Column::new("u".into(), ramp(64)), Column::new("y".into(), ramp(64))]);
+    let bytes = fs::read(&good).unwrap();
+    for column in ["u", "y"] {
+        let p = dir.path().join(format!("page-{column}.parquet"));
+        fs::write(&p, common::negate_page_values(&bytes, column)).unwrap();
+        err_uy(
+            &p,
+            &format!("a page of column '{column}' in row group 0 declares a value count of -65 where at most 64 fit"),
+        );
+    }
 }
 
 fn record(name: &str, u: Vec<f64>, y: Vec<f64>) -> Record {

@@ -60,6 +60,22 @@ fn runs_leave_the_host_process_alone() {
 
     assert_eq!(dispositions(), signals, "SIGINT/SIGTERM dispositions changed");
     assert_eq!(format!("{:?}", faer::get_global_parallelism()), parallelism, "faer's global parallelism changed");
+    // A host that turns faer's global parallelism off (faer's high-level calls then panic): every
+    // faer routine gets `Par::Seq` from oesweep itself (`dense`), so the run is the same.
+    faer::disable_global_parallelism();
+    let off = engine::run(
+        &common::piezo_job(dir.path(), "off", "host", 1000, ([2, 3], [2, 3]), (0.5, 2)),
+        &RunOptions { threads: 2, ..Default::default() },
+        &|_| {},
+    );
+    faer::set_global_parallelism(faer::Par::Seq);
+    let off = off.unwrap();
+    assert_eq!(off.failed, 0, "{off:?}");
+    assert!(
+        common::table_without_seconds(&dir.path().join("off"))
+            == common::table_without_seconds(&dir.path().join("one")),
+        "the run with faer's global parallelism off differs"
+    );
     let before = PANICS.load(Ordering::SeqCst);
     let _ = std::panic::catch_unwind(|| panic!("probe"));
     assert_eq!(PANICS.load(Ordering::SeqCst), before + 1, "the host's panic hook was replaced");

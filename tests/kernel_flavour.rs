@@ -52,9 +52,15 @@ fn a_table_takes_rows_of_one_kernel_flavour() {
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     let o = oesweep(&["run", file, "--shard", "1/2", "--quiet"]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
-    refused_as_a_mix(&oesweep(&["merge", out.to_str().unwrap()]), &out);
+    // Each with advice that command can follow: merge has no --force, run has.
+    let o = oesweep(&["merge", out.to_str().unwrap()]);
+    refused_as_a_mix(&o, &out);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("run that folder's cells again") && !err.contains("rerun with --force"), "{err}");
     // A whole run here would resume from the generic shard's rows: refused too.
-    refused_as_a_mix(&oesweep(&["run", file, "--quiet"]), &out);
+    let o = oesweep(&["run", file, "--quiet"]);
+    refused_as_a_mix(&o, &out);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("rerun with --force"), "{}", text(&o));
 
     // Shard 1 again on the generic kernels: the merge is the generic single-process table.
     let o = generic(&["run", file, "--shard", "1/2", "--quiet", "--force"]);
@@ -83,4 +89,51 @@ fn a_table_takes_rows_of_one_kernel_flavour() {
         common::table_without_seconds(&out) != common::table_without_seconds(&dir.path().join("avx2")),
         "the two flavours gave the same table"
     );
+}
+
+/// A checkpoint written before manifests recorded the kernels (no `kernels` field) is refused
+/// by a resume and by a merge with one line that says what to do, not serde's "missing field".
+#[test]
+fn a_checkpoint_without_its_kernels_says_what_to_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let (file, out) =
+        (common::piezo_job(dir.path(), "out", "old", 1000, ([1, 2], [1, 2]), (0.5, 2)), dir.path().join("out"));
+    let file = file.to_str().unwrap();
+    let o = oesweep(&["run", file, "--shard", "0/2", "--quiet"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let mut manifests = Vec::new();
+    let mut stack = vec![out.clone()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.file_name().unwrap() == "manifest.json" {
+                manifests.push(p);
+            }
+        }
+    }
+    assert_eq!(manifests.len(), 1, "{manifests:?}");
+    let mut m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&manifests[0]).unwrap()).unwrap();
+    m.as_object_mut().unwrap().remove("kernels").expect("a manifest records its kernels");
+    std::fs::write(&manifests[0], m.to_string()).unwrap();
+
+    for (args, advice) in [
+        (vec!["merge", out.to_str().unwrap()], "merge with the build that wrote it, or run the job again with --force"),
+        (
+            vec!["run", file, "--quiet"],
+            "start again with --force (deletes the checkpoint) or resume with the build that wrote it",
+        ),
+    ] {
+        let o = oesweep(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", text(&o));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(err.lines().count(), 1, "{}", text(&o));
+        assert!(
+            err.contains("manifest.json") && err.contains("did not record which kernels computed its rows"),
+            "{err}"
+        );
+        assert!(err.contains(advice) && !err.contains("missing field"), "{err}");
+    }
+    assert!(!out.join("cells.parquet").exists());
 }

@@ -7,8 +7,8 @@
 //! cells.parquet) and checkpoint folders (manifest.json, job.json, a part). Every property
 //! runs the binary, so the case counts are modest ([`CASES_CLI`], [`CASES_RESULTS`],
 //! [`CASES_CHECKPOINT`]: 180 processes in all) and the seed is fixed: the same cases every run.
-//! The one abort left is polars' on a damaged Parquet *page header* (see `plan_parquet` in
-//! tests/fuzz_parsers.rs, which tolerates it): no case here has met it.
+//! A damaged Parquet *page header* is refused before polars decodes it (the abort it caused is
+//! the regression case `tests/bad_inputs/parquet_page_header_values`).
 
 mod common;
 

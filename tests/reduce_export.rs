@@ -1,5 +1,7 @@
 //! The result table on disk (`cells.parquet`), JSON output, and model choice from a read-back table.
 
+mod common;
+
 use oesweep::Error;
 use oesweep::estimate::evidence::Evidence;
 use oesweep::export::json::write_json;
@@ -263,14 +265,12 @@ fn corrupt_files_are_errors_not_panics() {
     write_cells(&good, &sample_rows()).unwrap();
     let bytes = std::fs::read(&good).unwrap();
     let bad = dir.path().join("bad.parquet");
-    // The footer (file metadata, its length and the magic) is where a damaged file is caught.
-    // Damage inside a data page header is not tried: polars 0.55.2 can then attempt a huge
-    // allocation and abort the process, which no error handling can intercept.
+    // Every byte damaged in turn, the page headers inside the column chunks as well as the footer
+    // (its length and the magic): polars 0.55.2 trusts a page header's counts and could attempt
+    // a huge allocation and abort this process; the checks before polars refuse them.
     let n = bytes.len();
-    let footer_len = u32::from_le_bytes(bytes[n - 8..n - 4].try_into().unwrap()) as usize;
-    let footer_start = n - 8 - footer_len;
     let mut errors = 0;
-    for i in (footer_start..n).chain(0..4) {
+    for i in 0..n {
         let mut b = bytes.clone();
         b[i] = b[i].wrapping_add(0x5b);
         std::fs::write(&bad, &b).unwrap();
@@ -284,4 +284,25 @@ fn corrupt_files_are_errors_not_panics() {
         assert!(read_cells(&bad).unwrap_err().is_bad_input());
     }
     assert!(errors > 0);
+}
+
+/// The page header damage that aborted the process before (a negative value count, see
+/// `common::negate_page_values`) in a column of each type: one clear error naming the file.
+#[test]
+fn a_page_header_with_a_negative_count_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.parquet");
+    write_cells(&good, &sample_rows()).unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+    let bad = dir.path().join("bad.parquet");
+    for column in ["method", "nb", "k", "converged", "b.list.element"] {
+        std::fs::write(&bad, common::negate_page_values(&bytes, column)).unwrap();
+        let e = read_cells(&bad).unwrap_err();
+        let msg = e.to_string();
+        assert!(e.is_bad_input() && msg.contains("bad.parquet"), "{msg}");
+        assert!(
+            msg.contains(&format!("a page of column '{column}' in row group 0 declares a value count of -")),
+            "{msg}"
+        );
+    }
 }

@@ -34,9 +34,44 @@ impl Existing {
     }
 }
 
-/// Error about the parts folder, with the way out.
-pub(super) fn refuse(path: &Path, why: impl std::fmt::Display) -> Error {
-    Error::input(path, format!("{why}; rerun with --force to delete the checkpoint and start over"))
+/// What a checkpoint is read for: the way out of a refusal differs (`run` has `--force`,
+/// `merge` has not).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Purpose {
+    Resume,
+    Merge,
+}
+
+/// Error about a checkpoint folder, with the way out for `purpose`.
+pub(super) fn refuse(path: &Path, why: impl std::fmt::Display, purpose: Purpose) -> Error {
+    let way_out = match purpose {
+        Purpose::Resume => "rerun with --force to delete the checkpoint and start over",
+        Purpose::Merge => {
+            "run that folder's cells again (`oesweep run JOB --shard I/N --force` for a shard folder) and merge again"
+        }
+    };
+    Error::input(path, format!("{why}; {way_out}"))
+}
+
+/// The manifest at `path`. One written before checkpoints recorded their kernel flavour (its
+/// rows cannot be matched to a flavour) gets a message that says so and what to do, rather
+/// than serde's "missing field".
+pub(super) fn read_manifest(path: &Path, purpose: Purpose) -> Result<Manifest> {
+    let text = std::fs::read_to_string(path).map_err(|e| refuse(path, format!("cannot read: {e}"), purpose))?;
+    let value: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| refuse(path, format!("not a checkpoint manifest: {e}"), purpose))?;
+    if value.is_object() && value.get("job_sha256").is_some() && value.get("kernels").is_none() {
+        let why = "was written by an earlier build of oesweep that did not record which kernels computed its rows, \
+                   so they cannot join this build's";
+        let way_out = match purpose {
+            Purpose::Resume => {
+                "start again with --force (deletes the checkpoint) or resume with the build that wrote it"
+            }
+            Purpose::Merge => "merge with the build that wrote it, or run the job again with --force",
+        };
+        return Err(Error::input(path, format!("{why}: {way_out}")));
+    }
+    serde_json::from_value(value).map_err(|e| refuse(path, format!("not a checkpoint manifest: {e}"), purpose))
 }
 
 /// Part files of `parts`, sorted by number.
@@ -57,11 +92,15 @@ pub(super) fn list_parts(parts: &Path) -> Result<Vec<(u64, PathBuf)>> {
 /// another job, a missing or unreadable manifest next to parts, an unreadable part or a row
 /// that is not a cell of `plan`: an [`Error::Input`] naming the file and the difference.
 pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
+    inspect_for(parts, now, plan, Purpose::Resume)
+}
+
+fn inspect_for(parts: &Path, now: &Manifest, plan: &Plan, purpose: Purpose) -> Result<Existing> {
     if !parts.exists() {
         return Ok(Existing { next_part: 1, ..Default::default() });
     }
     if !parts.is_dir() {
-        return Err(refuse(parts, "exists but is not a checkpoint folder"));
+        return Err(refuse(parts, "exists but is not a checkpoint folder", purpose));
     }
     let files = list_parts(parts)?;
     let manifest_path = parts.join(MANIFEST);
@@ -70,17 +109,14 @@ pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
             // Killed between creating the folder and writing the manifest: nothing was saved.
             return Ok(Existing { next_part: 1, ..Default::default() });
         }
-        return Err(refuse(&manifest_path, "missing, so the parts next to it cannot be matched to this job"));
+        return Err(refuse(&manifest_path, "missing, so the parts next to it cannot be matched to this job", purpose));
     }
-    let text =
-        std::fs::read_to_string(&manifest_path).map_err(|e| refuse(&manifest_path, format!("cannot read: {e}")))?;
-    let stored: Manifest =
-        serde_json::from_str(&text).map_err(|e| refuse(&manifest_path, format!("not a checkpoint manifest: {e}")))?;
+    let stored = read_manifest(&manifest_path, purpose)?;
     if let Some(why) = stored.kernel_mix(now) {
-        return Err(refuse(parts, why));
+        return Err(refuse(parts, why, purpose));
     }
     if let Some(what) = stored.difference(now) {
-        return Err(refuse(parts, format!("holds an interrupted run of a different job: {what}")));
+        return Err(refuse(parts, format!("holds an interrupted run of a different job: {what}"), purpose));
     }
 
     let huber_keys: HashSet<RowKey> =
@@ -95,7 +131,7 @@ pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
         let read = std::panic::catch_unwind(|| export::parquet::read_cells(path))
             .unwrap_or_else(|_| Err(Error::input(path, "not a readable Parquet file")));
         let rows = read.map_err(|e| match e {
-            Error::Input { path, msg } => refuse(&path, msg),
+            Error::Input { path, msg } => refuse(&path, msg, purpose),
             other => other,
         })?;
         for (i, row) in rows.into_iter().enumerate() {
@@ -107,7 +143,7 @@ pub fn inspect(parts: &Path, now: &Manifest, plan: &Plan) -> Result<Existing> {
             };
             let known = if row.is_huber() { huber_keys.contains(&key) } else { ls_keys.contains(&key) };
             if !(known && k_ok) {
-                return Err(refuse(path, format!("row {i} ({key}) is not a cell of this job")));
+                return Err(refuse(path, format!("row {i} ({key}) is not a cell of this job"), purpose));
             }
             if seen.insert(key) {
                 out.rows.push(row);
@@ -157,11 +193,6 @@ pub struct Gathered {
     pub duplicates: usize,
 }
 
-pub(super) fn read_json_file<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
-    serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not a checkpoint file of oesweep: {e}")))
-}
-
 /// Read every checkpoint folder of `out` (writes nothing). All must belong to one job (the
 /// same manifest), written by this version of oesweep (a merge must not mix programs), and
 /// the job file must be the job of the manifest. A cell found in two folders (say, a shard run
@@ -178,7 +209,7 @@ pub fn gather(out: &Path) -> Result<Gathered> {
     let Some(reference) = dirs.iter().map(|(d, _)| d).find(|d| d.join(MANIFEST).exists()) else {
         return Err(Error::input(&parts, "holds no checkpoint manifest, so there is nothing to merge"));
     };
-    let manifest: Manifest = read_json_file(&reference.join(MANIFEST))?;
+    let manifest = read_manifest(&reference.join(MANIFEST), Purpose::Merge)?;
     let version = env!("CARGO_PKG_VERSION");
     if manifest.oesweep_version != version {
         return Err(Error::input(
@@ -205,7 +236,7 @@ pub fn gather(out: &Path) -> Result<Gathered> {
     let mut found: std::collections::HashMap<RowKey, (CellRow, usize)> = std::collections::HashMap::new();
     let (mut folders, mut duplicates) = (Vec::new(), 0);
     for (dir, shard) in dirs {
-        let existing = inspect(&dir, &manifest, &plan)?;
+        let existing = inspect_for(&dir, &manifest, &plan, Purpose::Merge)?;
         duplicates += existing.duplicates;
         for row in existing.rows {
             match found.get(&row.key) {

@@ -13,13 +13,12 @@
 //! `y = q^-d B/F (u - u0) + offset` in the data's own units, with `offset = y0` for `mean` and
 //! `median`, `c` for `estimate` (there `y0 = 0`), none for `none`.
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 use super::Record;
 
 /// The job's `offset` setting.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Offset {
     #[default]
     Estimate,
@@ -28,16 +27,9 @@ pub enum Offset {
     None,
 }
 
-impl Offset {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Offset::Estimate => "estimate",
-            Offset::Mean => "mean",
-            Offset::Median => "median",
-            Offset::None => "none",
-        }
-    }
+crate::names::names!(Offset { Estimate = "estimate", Mean = "mean", Median = "median", None = "none" });
 
+impl Offset {
     /// True when the fits estimate the output offset c.
     pub fn estimated(self) -> bool {
         self == Offset::Estimate

@@ -36,7 +36,7 @@ impl std::str::FromStr for PickSpec {
         let bad = || {
             format!(
                 "--pick {s}: expected m1, m2, a rule ({}) or NB,NF,K[,D] with K a k of the grid or `ls`",
-                Rule::ALL.map(Rule::as_str).join(", ")
+                Rule::NAMES.join(", ")
             )
         };
         let parts: Vec<&str> = s.split(',').map(str::trim).collect();

@@ -22,7 +22,6 @@
 //!
 //! **Residual tests** (whiteness, independence from the input): [`super::residual_tests`].
 
-use faer::linalg::solvers::DenseSolveCore;
 use faer::prelude::*;
 
 use super::huber::Loss;
@@ -210,7 +209,7 @@ fn covariance_of(
         return None;
     }
     let a = faer::Mat::<f64>::from_fn(d, d, |i, j| h[i * d + j] / (scale[i] * scale[j]));
-    let inv = a.llt(faer::Side::Lower).ok().map(|chol| chol.inverse());
+    let inv = crate::dense::Llt::new(a.as_ref()).map(|chol| chol.inverse());
     let inv: Vec<f64> = match inv {
         // A unit-diagonal matrix has max_i inv_ii >= 1/(d lambda_min) and <= 1/lambda_min:
         // the diagonal of the inverse bounds the condition the Cholesky inverse had to face.
@@ -279,8 +278,7 @@ fn qr_inverse(prob: &Problem, xu: &[f64], xy: &[f64], scale: &[f64], rq: &mut Ve
                 out.fill(factor);
             }
         }
-        let qr = block.as_ref().subrows(0, r_rows + m).qr();
-        let r = qr.thin_R();
+        let r = crate::dense::qr_r(block.as_ref().subrows(0, r_rows + m));
         r_rows = r.nrows();
         for i in 0..r_rows {
             for j in i..d {
@@ -377,7 +375,7 @@ mod tests {
             NormalEquations::default().build_all(&prob.layout(), true, &seams, &xu, &xy, None, &r, &mut h, &mut g);
             let scale: Vec<f64> = (0..d).map(|i| h[i * d + i].sqrt()).collect();
             let a = faer::Mat::<f64>::from_fn(d, d, |i, j| h[i * d + j] / (scale[i] * scale[j]));
-            let chol = a.llt(faer::Side::Lower).expect("well conditioned").inverse();
+            let chol = crate::dense::Llt::new(a.as_ref()).expect("well conditioned").inverse();
             let qr = qr_inverse(&prob, &xu, &xy, &scale, &mut Vec::new()).expect("full rank");
             let big = (0..d * d).map(|ij| chol[(ij / d, ij % d)].abs()).fold(0.0, f64::max);
             for ij in 0..d * d {

@@ -11,7 +11,6 @@
 use super::problem::Problem;
 use crate::oe;
 use faer::Mat;
-use faer::prelude::*;
 
 /// Entry (t, c) of the regressor matrix with columns `[u_{t-d-i+1}]_{i=1..nb}` and
 /// `[-s2_{t-j}]_{j=1..nf}`, and with an output offset a column of ones: `F (y - c) = B u` is
@@ -48,7 +47,7 @@ fn r_factor(n: usize, cols: usize, a: impl Fn(usize, usize) -> f64) -> Mat<f64> 
         let m = BLOCK.min(n - t0);
         let k = r.nrows();
         let stacked = Mat::from_fn(k + m, cols, |i, c| if i < k { r[(i, c)] } else { a(t0 + i - k, c) });
-        r = stacked.qr().thin_R().to_owned();
+        r = crate::dense::qr_r(stacked.as_ref());
     }
     r
 }
@@ -67,7 +66,7 @@ pub(super) fn cross_product(
         let m = BLOCK.min(n - t0);
         let zb = Mat::from_fn(m, zc, |i, c| z(t0 + i, c));
         let ab = Mat::from_fn(m, ac, |i, c| a(t0 + i, c));
-        out += zb.transpose() * &ab;
+        out += crate::dense::mul(zb.transpose(), ab.as_ref());
     }
     out
 }
@@ -94,7 +93,7 @@ pub fn arx(prob: &Problem) -> Option<Vec<f64>> {
     let rows = r.nrows();
     let lhs = Mat::from_fn(rows, d, |i, c| r[(i, c)]);
     let rhs = Mat::from_fn(rows, 1, |i, _| r[(i, d)]);
-    let sol = lhs.col_piv_qr().solve_lstsq(&rhs);
+    let sol = crate::dense::lstsq(lhs.as_ref(), rhs.as_ref());
     let mut theta: Vec<f64> = (0..d).map(|i| sol[(i, 0)]).collect();
     if !finite(&theta) {
         return None;
@@ -116,7 +115,7 @@ fn iv_step(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
     let zt = cross_product(prob.n(), d, d + 1, |t, c| regressor(prob, &x, t, c), |t, c| regressor(prob, prob.y, t, c));
     let zt_phi = Mat::from_fn(d, d, |i, c| zt[(i, c)]);
     let zt_y = Mat::from_fn(d, 1, |i, _| zt[(i, d)]);
-    let sol = zt_phi.partial_piv_lu().solve(&zt_y);
+    let sol = crate::dense::Lu::new(zt_phi.as_ref()).solve(zt_y.as_ref());
     let mut th: Vec<f64> = (0..d).map(|i| sol[(i, 0)]).collect();
     if !finite(&th) {
         return None;

@@ -20,8 +20,7 @@ use super::linalg::{cholesky, cholesky_solve};
 use crate::{kernels, oe};
 
 /// The initial state a fitted model is judged with (the job's `initial_state`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum InitialState {
     /// Fitted by least squares on the record being judged (the default).
     #[default]
@@ -30,14 +29,7 @@ pub enum InitialState {
     Zero,
 }
 
-impl InitialState {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            InitialState::Estimate => "estimate",
-            InitialState::Zero => "zero",
-        }
-    }
-}
+crate::names::names!(InitialState { Estimate = "estimate", Zero = "zero" });
 
 /// A fitted model's output on a record (u, y) in the data's units: `q^-d B/F (u - u0) +
 /// offset` from zero initial conditions, plus the free response of the fitted initial state

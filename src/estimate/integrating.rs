@@ -47,7 +47,6 @@ use super::initial_guess::{arx, regressor};
 use super::problem::Problem;
 use crate::oe;
 use faer::Mat;
-use faer::prelude::*;
 
 /// The samples a record is tested on at most (its head): time constants up to about a tenth of
 /// this are told from an integrator (METHOD.md 7.3).
@@ -176,7 +175,8 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
                 }
             }
         });
-        let sol = Mat::from_fn(dd, dd, |i, c| m[(i, c)]).partial_piv_lu().solve(Mat::from_fn(dd, 1, |i, _| m[(i, dd)]));
+        let lhs = Mat::from_fn(dd, dd, |i, c| m[(i, c)]);
+        let sol = crate::dense::Lu::new(lhs.as_ref()).solve(Mat::from_fn(dd, 1, |i, _| m[(i, dd)]).as_ref());
         theta = (0..dd).map(|i| sol[(i, 0)]).collect();
         if !theta.iter().all(|s| s.is_finite()) {
             return None;
@@ -215,7 +215,7 @@ fn a_at_1_variance(prob: &Problem, fit: &IvFit) -> Option<f64> {
         }
     });
     let ones = Mat::from_fn(dd, 1, |i, _| f64::from(u8::from((prob.nb..prob.nb + prob.nf).contains(&i))));
-    let v = g.transpose().partial_piv_lu().solve(ones);
+    let v = crate::dense::Lu::new(g.transpose()).solve(ones.as_ref());
     let lag = (4.0 * (fit.rows as f64 / 100.0).powf(2.0 / 9.0)).floor().max(1.0) as usize;
     let mut ring = vec![(usize::MAX, 0.0); lag + 1];
     let mut var = 0.0;

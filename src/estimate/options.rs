@@ -102,8 +102,7 @@ impl SolverOptions {
 }
 
 /// Why a minimisation stopped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Termination {
     /// Relative decrease of the criterion (actual and predicted) below `ftol`.
     CriterionTolerance,
@@ -122,6 +121,8 @@ pub enum Termination {
     NonFinite,
 }
 
+crate::names::names!(Termination { CriterionTolerance = "criterion_tolerance", StepTolerance = "step_tolerance", GradientTolerance = "gradient_tolerance", ExactFit = "exact_fit", MaxIterations = "max_iterations", Stalled = "stalled", NonFinite = "non_finite" });
+
 impl Termination {
     /// The one rule for a usable fit: it did not break down and `value` (its criterion, or a
     /// quantity computed from its residuals such as sigma) is finite.
@@ -137,18 +138,6 @@ impl Termination {
                 | Termination::GradientTolerance
                 | Termination::ExactFit
         )
-    }
-
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Termination::CriterionTolerance => "criterion_tolerance",
-            Termination::StepTolerance => "step_tolerance",
-            Termination::GradientTolerance => "gradient_tolerance",
-            Termination::ExactFit => "exact_fit",
-            Termination::MaxIterations => "max_iterations",
-            Termination::Stalled => "stalled",
-            Termination::NonFinite => "non_finite",
-        }
     }
 }
 

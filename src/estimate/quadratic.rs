@@ -124,14 +124,13 @@ pub fn check(prob: &Problem, theta: &[f64], loss: Loss, cov: &[f64]) -> Quadrati
     let s = prob.y.iter().zip(&yhat).map(|(y, yh)| loss.psi(y - yh).powi(2)).sum::<f64>() / n as f64 / slope;
     let predicted = STEP_STD * STEP_STD * s / (2.0 * n as f64);
     let p = faer::Mat::<f64>::from_fn(d, d, |i, j| 0.5 * (cov[i * d + j] + cov[j * d + i]));
-    let eig = p.self_adjoint_eigen(faer::Side::Lower);
+    let eig = crate::dense::symmetric_eigen(p.as_ref());
     let mut out =
         QuadraticCheck { step_std: STEP_STD, min_ratio: f64::INFINITY, max_ratio: 0.0, drop: 0.0, unstable: 0 };
-    let Ok(eig) = eig else {
+    let Some((vals, vecs)) = eig else {
         out.min_ratio = f64::NAN;
         return out;
     };
-    let (vecs, vals) = (eig.U(), eig.S().column_vector());
     let mut point = vec![0.0; d];
     for i in 0..d {
         let len = STEP_STD * vals[i].max(0.0).sqrt();

@@ -12,7 +12,6 @@
 //! ([`residual_correlations`]). The report's correlation plot ([`correlation_functions`])
 //! shows the same correlations.
 
-use faer::prelude::*;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use crate::kernels;
@@ -87,8 +86,8 @@ pub(super) fn independence_p(reu: &[f64], see: f64, n: usize, ruu: &[f64]) -> f6
     let k = m + 1;
     let toeplitz = faer::Mat::<f64>::from_fn(k, k, |i, j| ruu[i.abs_diff(j)] / nf);
     let rhs = faer::Mat::<f64>::from_fn(k, 1, |i, _| reu[i] / nf);
-    let Ok(chol) = toeplitz.llt(faer::Side::Lower) else { return f64::NAN };
-    let x = chol.solve(&rhs);
+    let Some(chol) = crate::dense::Llt::new(toeplitz.as_ref()) else { return f64::NAN };
+    let x = chol.solve(rhs.as_ref());
     let zeta = nf * (0..k).map(|i| rhs[(i, 0)] * x[(i, 0)]).sum::<f64>() / sigma2;
     chi2_sf(zeta, k)
 }

@@ -26,11 +26,9 @@
 
 use crate::oe::{poles, poly_from_roots};
 use faer::Mat;
-use faer::linalg::solvers::DenseSolveCore;
 
 /// How the discrete model is mapped to continuous time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Method {
     /// The inverse of the zero-order hold: the continuous system that samples to the model.
     Zoh,
@@ -38,23 +36,12 @@ pub enum Method {
     Tustin,
 }
 
-impl Method {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Method::Zoh => "zoh",
-            Method::Tustin => "tustin",
-        }
-    }
-}
+crate::names::names!(Method { Zoh = "zoh", Tustin = "tustin" });
 
 impl std::str::FromStr for Method {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "zoh" => Ok(Method::Zoh),
-            "tustin" => Ok(Method::Tustin),
-            _ => Err(format!("method {s:?}: expected zoh or tustin")),
-        }
+        Method::from_name(s).ok_or_else(|| format!("method {s:?}: expected {}", Method::NAMES.join(" or ")))
     }
 }
 
@@ -282,8 +269,7 @@ fn poly_mul(a: &[f64], b: &[f64]) -> Vec<f64> {
 
 /// Eigenvalues of a real square matrix as (re, im) pairs; None when the solver fails.
 fn eigenvalues(a: &Mat<f64>) -> Option<Vec<(f64, f64)>> {
-    let ev = a.eigenvalues().ok()?;
-    let ev: Vec<(f64, f64)> = ev.iter().map(|z| (z.re, z.im)).collect();
+    let ev = crate::dense::eigenvalues(a.as_ref())?;
     ev.iter().all(|z| z.0.is_finite() && z.1.is_finite()).then_some(ev)
 }
 
@@ -296,7 +282,7 @@ fn minus_identity(a: &Mat<f64>) -> Mat<f64> {
 }
 
 fn inverse(a: &Mat<f64>) -> Option<Mat<f64>> {
-    let inv = a.partial_piv_lu().inverse();
+    let inv = crate::dense::Lu::new(a.as_ref()).inverse();
     (0..inv.nrows()).all(|i| (0..inv.ncols()).all(|j| inv[(i, j)].is_finite())).then_some(inv)
 }
 
@@ -308,7 +294,7 @@ fn sqrtm(a: &Mat<f64>) -> Option<Mat<f64>> {
     for _ in 0..100 {
         let mi = inverse(&m)?;
         let half = Mat::from_fn(n, n, |i, j| 0.5 * (if i == j { 1.0 } else { 0.0 } + mi[(i, j)]));
-        y = &y * &half;
+        y = crate::dense::mul(y.as_ref(), half.as_ref());
         m = Mat::from_fn(n, n, |i, j| 0.5 * (if i == j { 1.0 } else { 0.0 } + 0.5 * (m[(i, j)] + mi[(i, j)])));
         if norm1(&minus_identity(&m)) <= 1e-15 * n as f64 {
             return Some(y);
@@ -345,7 +331,7 @@ pub(crate) fn logm(a: &Mat<f64>) -> Option<Mat<f64>> {
             let tj = 0.5 * (1.0 + sign * node);
             let wj = 0.5 * weight;
             let shifted = Mat::from_fn(n, n, |i, j| tj * x[(i, j)] + if i == j { 1.0 } else { 0.0 });
-            let term = &x * &inverse(&shifted)?;
+            let term = crate::dense::mul(x.as_ref(), inverse(&shifted)?.as_ref());
             log = Mat::from_fn(n, n, |i, j| log[(i, j)] + wj * term[(i, j)]);
         }
     }

@@ -8,9 +8,10 @@
 //! so a sweep can rewrite it as a checkpoint while a reader looks at the previous version.
 //! Floats roundtrip bit-exactly; reading checks every column's presence and dtype, so a file
 //! from another tool or an older layout fails with a message naming the column. Extra columns
-//! are ignored. A panic of the Parquet decoder on a damaged file becomes an input error too;
-//! what cannot be caught is an allocation failure: polars 0.55.2 may try to allocate an absurd
-//! size when a *data page header* is damaged, which aborts the process.
+//! are ignored. The footer and every page header are checked before polars decodes anything
+//! ([`crate::data::parquet::check_layout`]: polars 0.55.2 trusts their counts, and an absurd
+//! allocation aborts the process); a panic of the decoder on a damaged file becomes an input
+//! error too.
 
 use crate::error::{Error, Result};
 use crate::table::{self, COLUMNS, CellRow, ColumnType, FitKind, RowKey, Value};
@@ -60,8 +61,8 @@ pub fn read_cells(path: &Path) -> Result<Vec<CellRow>> {
 fn read_frame(file: File) -> std::result::Result<DataFrame, String> {
     let unreadable = |e: PolarsError| format!("not a readable Parquet file: {e}");
     let len = file.metadata().map_err(|e| format!("cannot read: {e}"))?.len();
-    let mut reader = ParquetReader::new(file);
-    crate::data::parquet::check_footer(&mut reader, len)?;
+    let mut reader = ParquetReader::new(file.try_clone().map_err(|e| format!("cannot read: {e}"))?);
+    crate::data::parquet::check_layout(&mut reader, &file, len)?;
     let meta = reader.get_metadata().map_err(unreadable)?;
     let declared = meta.key_value_metadata().iter().flatten().find(|kv| kv.key == super::FORMAT_KEY);
     super::check_format(declared.map(|kv| kv.value.as_deref().unwrap_or(""))).map_err(|m| format!("metadata: {m}"))?;

@@ -212,8 +212,7 @@ pub struct Grid {
 }
 
 /// Where each Huber fit starts.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum StartStrategy {
     /// Continuation chains along increasing k, one per start (theta_LS and the pair's extra
     /// starts), merged when they reach the same minimum; each cell keeps the best chain
@@ -230,16 +229,7 @@ pub enum StartStrategy {
     Best,
 }
 
-impl StartStrategy {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            StartStrategy::Chains => "chains",
-            StartStrategy::Ls => "ls",
-            StartStrategy::Neighbour => "neighbour",
-            StartStrategy::Best => "best",
-        }
-    }
-}
+crate::names::names!(StartStrategy { Chains = "chains", Ls = "ls", Neighbour = "neighbour", Best = "best" });
 
 /// Smallest `solver.explore_rows`: a shorter head says too little about lightly damped modes.
 const MIN_EXPLORE_ROWS: usize = 1000;

@@ -26,8 +26,7 @@ use std::collections::BTreeMap;
 pub const INDEPENDENCE_LEVEL: f64 = 0.01;
 
 /// A pick rule (its `selection.json` name in snake case).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Rule {
     PaperM1,
     PaperM2,
@@ -41,36 +40,9 @@ pub enum Rule {
     Evidence,
 }
 
+crate::names::names!(Rule { PaperM1 = "paper_m1", PaperM2 = "paper_m2", Aic = "aic", Aicc = "aicc", Bic = "bic", Fpe = "fpe", Raic = "raic", Rbic = "rbic", Validation = "validation", Evidence = "evidence" });
+
 impl Rule {
-    pub const ALL: [Rule; 10] = [
-        Rule::PaperM1,
-        Rule::PaperM2,
-        Rule::Aic,
-        Rule::Aicc,
-        Rule::Bic,
-        Rule::Fpe,
-        Rule::Raic,
-        Rule::Rbic,
-        Rule::Validation,
-        Rule::Evidence,
-    ];
-
-    /// The rule's name in `selection.json`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Rule::PaperM1 => "paper_m1",
-            Rule::PaperM2 => "paper_m2",
-            Rule::Aic => "aic",
-            Rule::Aicc => "aicc",
-            Rule::Bic => "bic",
-            Rule::Fpe => "fpe",
-            Rule::Raic => "raic",
-            Rule::Rbic => "rbic",
-            Rule::Validation => "validation",
-            Rule::Evidence => "evidence",
-        }
-    }
-
     /// The criterion a minimising rule ranks by, as the table column holds it.
     fn criterion(self) -> Option<fn(&CellRow) -> Option<f64>> {
         Some(match self {

@@ -13,7 +13,6 @@
 //! cleaned output.
 
 use faer::Mat;
-use faer::prelude::*;
 
 /// Settings of [`clean`].
 #[derive(Clone, Debug, PartialEq)]
@@ -150,7 +149,7 @@ fn robust_arx(u: &[f64], y: &[f64], p: usize) -> Option<(Vec<f64>, f64)> {
             }
         });
         let yw = Mat::<f64>::from_fn(rows + d, 1, |r, _| if r < rows { sw[r] * y[r + p] } else { 0.0 });
-        let sol = xw.col_piv_qr().solve_lstsq(&yw);
+        let sol = crate::dense::lstsq(xw.as_ref(), yw.as_ref());
         theta = (0..d).map(|i| sol[(i, 0)]).collect();
         if theta.iter().any(|v| !v.is_finite()) {
             return None;

@@ -46,8 +46,7 @@ use crate::oe::freq_response;
 use std::f64::consts::PI;
 
 /// Which nonparametric estimate judges models (`fit_band`) and is drawn in the report.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum SpectrumMethod {
     /// Welch of the record with its output's spikes cleaned out first ([`clean`]).
     #[default]
@@ -56,14 +55,7 @@ pub enum SpectrumMethod {
     Welch,
 }
 
-impl SpectrumMethod {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            SpectrumMethod::Robust => "robust",
-            SpectrumMethod::Welch => "welch",
-        }
-    }
-}
+crate::names::names!(SpectrumMethod { Robust = "robust", Welch = "welch" });
 
 /// The spectral estimate of a record by `method` (default Welch settings): the one entry
 /// point for the sweep, `oesweep fit`, `oesweep spectrum` and the report.

@@ -29,20 +29,11 @@ pub enum FitKind {
     Huber,
 }
 
-impl FitKind {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            FitKind::Ls => "ls",
-            FitKind::Huber => "huber",
-        }
-    }
+crate::names::names!(FitKind { Ls = "ls", Huber = "huber" });
 
+impl FitKind {
     pub fn parse(s: &str) -> Result<Self, String> {
-        match s {
-            "ls" => Ok(FitKind::Ls),
-            "huber" => Ok(FitKind::Huber),
-            other => Err(format!("unknown method {other:?}")),
-        }
+        Self::from_name(s).ok_or_else(|| format!("unknown method {s:?}"))
     }
 }
 
@@ -55,20 +46,11 @@ pub enum Status {
     Failed,
 }
 
-impl Status {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Status::Ok => "ok",
-            Status::Failed => "failed",
-        }
-    }
+crate::names::names!(Status { Ok = "ok", Failed = "failed" });
 
+impl Status {
     pub fn parse(s: &str) -> Result<Self, String> {
-        match s {
-            "ok" => Ok(Status::Ok),
-            "failed" => Ok(Status::Failed),
-            other => Err(format!("unknown status {other:?}")),
-        }
+        Self::from_name(s).ok_or_else(|| format!("unknown status {s:?}"))
     }
 }
 

@@ -202,3 +202,38 @@ pub fn copy_tree(from: &std::path::Path, to: &std::path::Path) {
         }
     }
 }
+
+/// `bytes` (a Parquet file) with the first data page of `column` (its path in the schema, e.g.
+/// `u` or `theta.list.element`) declaring -(n+1) values instead of its n: the damage to a page
+/// header that made polars 0.55 reserve 2^61 bytes and abort. The header keeps its length (the
+/// zigzag varints of n and -(n+1) are as long), so every other offset of the file stays true.
+pub fn negate_page_values(bytes: &[u8], column: &str) -> Vec<u8> {
+    use polars::prelude::{ParquetReader, SerReader};
+    use polars_parquet_format::thrift::protocol::{TCompactInputProtocol, TCompactOutputProtocol};
+    use polars_parquet_format::{PageHeader, PageType};
+    let mut reader = ParquetReader::new(std::io::Cursor::new(bytes.to_vec()));
+    let meta = reader.get_metadata().unwrap().clone();
+    let chunk = meta.row_groups[0]
+        .parquet_columns()
+        .iter()
+        .find(|c| c.descriptor().path_in_schema.join(".") == column)
+        .unwrap_or_else(|| panic!("no column {column}"));
+    let mut pos = chunk.byte_range().start as usize;
+    loop {
+        let mut cursor = std::io::Cursor::new(&bytes[pos..]);
+        let mut header =
+            PageHeader::read_from_in_protocol(&mut TCompactInputProtocol::new(&mut cursor, usize::MAX)).unwrap();
+        let len = cursor.position() as usize;
+        if header.type_ == PageType::DATA_PAGE {
+            let h = header.data_page_header.as_mut().unwrap();
+            h.num_values = -(h.num_values + 1);
+            let mut out = Vec::new();
+            header.write_to_out_protocol(&mut TCompactOutputProtocol::new(&mut out)).unwrap();
+            assert_eq!(out.len(), len, "the header changed its length");
+            let mut damaged = bytes.to_vec();
+            damaged[pos..pos + len].copy_from_slice(&out);
+            return damaged;
+        }
+        pos += len + header.compressed_page_size as usize;
+    }
+}
