@@ -93,7 +93,7 @@ def rng(xs, f="{:.2f}"):
 print(f"ours {rng(ours)} s; peer {rng(peer, '{:.1f}')} s; ratio peer / ours, same run: {rng(ratios, '{:.1f}')}x")
 PY
     echo "== quality, cell by cell (our table against the peer's first run; benches/compare_table.py)"
-    python3 "$root/benches/compare_table.py" "$work/pg/cells.parquet" "$work/peer_1.jsonl" "$est" | head -14
+    python3 "$root/benches/compare_table.py" "$work/pg/cells.parquet" "$work/peer_1.jsonl" "$est"
 else
     echo "== SAMPLE=1: a quick look; the peer extrapolated from a stratified sample flatters us, not the ratio"
     ks=$(python3 -c "print(','.join(repr(0.05 * (2 / 0.05) ** (i / 39)) for i in range(2, 40, 5)))")
