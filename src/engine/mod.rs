@@ -338,7 +338,8 @@ fn run_loaded(
         w.total.store(cells, Ordering::Relaxed);
         w.done.store(resumed_huber, Ordering::Relaxed);
     }
-    let outcome = {
+    let ctx = sweep::Context { profile: profile.clone(), ..p.context() };
+    let mut outcome = {
         let never = AtomicBool::new(false);
         let stop: &AtomicBool = opts.watch.as_ref().map_or(&never, |w| &w.stop);
         let tx = writer.sender();
@@ -350,7 +351,6 @@ fn run_loaded(
             }
         };
         let control = sweep::Control { done: existing.rows, on_row: &on_row, stop };
-        let ctx = sweep::Context { profile: profile.clone(), ..p.context() };
         if let Some(prof) = &profile {
             prof.serial("setup", setup.elapsed().as_secs_f64());
         }
@@ -395,6 +395,9 @@ fn run_loaded(
 
     // A whole run: the results, then the checkpoint has served (if deleting it fails, a rerun
     // finds every cell done and merges again), then the report.
+    // The checkpoint keeps the walks' rows; the pass is a function of all of them, so a resumed
+    // run and a merge of shards give the same table.
+    sweep::nested_pass(&plan, &ctx, &mut outcome.rows, opts.threads);
     let writing = Instant::now();
     let selection = write_results(&out, &p.job, &outcome.rows, Some(&p.inputs), opts.threads)?;
     if let Some(prof) = &profile {
@@ -573,11 +576,17 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
             result.end = MergeEnd::Incomplete;
             return Ok(result);
         }
-        // The records read again (the folder does not keep them) through the run's loader.
-        let inputs = job::load_inputs(&g.job).ok();
-        let selection = write_results(out, &g.job, &g.rows, inputs.as_ref(), 0)?;
-        result.huber = crate::table::huber_rows(&g.rows);
-        result.ls = g.rows.len() - result.huber;
+        // The records read again (the folder does not keep them) through the run's preparation,
+        // for the nested pass a whole run makes (without them the table is the walks' alone).
+        let prepared = prepare_job(g.job.clone()).ok();
+        let mut rows = g.rows;
+        if let Some(p) = &prepared {
+            sweep::nested_pass(&g.plan, &p.context(), &mut rows, 0);
+        }
+        let inputs = prepared.as_ref().map(|p| &p.inputs);
+        let selection = write_results(out, &g.job, &rows, inputs, 0)?;
+        result.huber = crate::table::huber_rows(&rows);
+        result.ls = rows.len() - result.huber;
         if result.missing.is_empty() {
             result.cleanup = checkpoint::remove(out).err();
         }

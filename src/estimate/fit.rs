@@ -81,6 +81,8 @@ pub enum StartKind {
     Chain { start: usize },
     /// A cell improved by the backward pass of the `chains` walk ([`ChainWalk`]).
     ChainBack,
+    /// A cell refitted from its sub-model's solution at the same k (`sweep::nested`, METHOD.md 5.6).
+    Nested,
 }
 
 impl StartKind {
@@ -93,6 +95,7 @@ impl StartKind {
             StartKind::Chain { start: 0 } => "chain_ls",
             StartKind::Chain { .. } => "chain_alt",
             StartKind::ChainBack => "chain_back",
+            StartKind::Nested => "nested",
         }
     }
 }

@@ -36,12 +36,14 @@ use crate::schedule;
 
 mod cells;
 mod graph;
+mod nested;
 
 use crate::spectral::SpectralEstimate;
 use crate::table::{CellRow, RowKey, sort_rows};
 use cells::{chain_cells, huber_cell};
 pub use graph::{MIN_LIVE_WORKSPACES, WORKSPACE_BUDGET_BYTES, live_workspaces};
 use graph::{Task, task_times, tasks};
+pub use nested::nested_pass;
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, Ordering};
