@@ -191,6 +191,9 @@ pub struct Gathered {
     pub folders: Vec<(PathBuf, Option<Shard>, usize)>,
     /// Rows found in more than one folder (identical but for `seconds`; kept once).
     pub duplicates: usize,
+    /// The kernel flavour that computed the rows (`kernels::Flavour::name`; one for all, or the
+    /// gathering refused them).
+    pub kernels: String,
 }
 
 /// Read every checkpoint folder of `out` (writes nothing). All must belong to one job (the
@@ -262,5 +265,5 @@ pub fn gather(out: &Path) -> Result<Gathered> {
     }
     let mut rows: Vec<CellRow> = found.into_values().map(|(r, _)| r).collect();
     crate::table::sort_rows(&mut rows);
-    Ok(Gathered { job, plan, rows, folders, duplicates })
+    Ok(Gathered { job, plan, rows, folders, duplicates, kernels: manifest.kernels })
 }

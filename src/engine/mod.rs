@@ -576,12 +576,12 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
             result.end = MergeEnd::Incomplete;
             return Ok(result);
         }
-        // The records read again (the folder does not keep them) through the run's preparation,
-        // for the nested pass a whole run makes (without them the table is the walks' alone).
-        let prepared = prepare_job(g.job.clone()).ok();
+        // The records read again (not kept in the folder), for the nested pass of a whole run.
+        let mut prepared = prepare_job(g.job.clone()).ok();
         let mut rows = g.rows;
-        if let Some(p) = &prepared {
-            sweep::nested_pass(&g.plan, &p.context(), &mut rows, 0);
+        if let Some(p) = &mut prepared {
+            let skipped = sweep::nested_pass_of_rows_from(&g.kernels, &g.plan, &p.context(), &mut rows);
+            p.inputs.warnings.extend(skipped);
         }
         let inputs = prepared.as_ref().map(|p| &p.inputs);
         let selection = write_results(out, &g.job, &rows, inputs, 0)?;

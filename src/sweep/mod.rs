@@ -43,7 +43,7 @@ use crate::table::{CellRow, RowKey, sort_rows};
 use cells::{chain_cells, huber_cell};
 pub use graph::{MIN_LIVE_WORKSPACES, WORKSPACE_BUDGET_BYTES, live_workspaces};
 use graph::{Task, task_times, tasks};
-pub use nested::nested_pass;
+pub use nested::{nested_pass, nested_pass_of_rows_from};
 use std::collections::HashMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -108,3 +108,20 @@ pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: us
     }
     lowered
 }
+
+/// [`nested_pass`] of rows computed by the `kernels` flavour (a merge's, on all cores): run
+/// only when this machine runs the same kernels, since refits on other kernels would mix two
+/// flavours in one table (README's promise for shards across CPUs). Returns the warning that
+/// says why it was not run.
+pub fn nested_pass_of_rows_from(kernels: &str, plan: &Plan, ctx: &Context, rows: &mut [CellRow]) -> Option<String> {
+    let here = crate::kernels::flavour().name();
+    if kernels != here {
+        return Some(format!(
+            "the nested pass (METHOD.md 5.6) was not run: the rows were computed with the {kernels} kernels and \
+             this machine runs the {here} kernels; merge on a machine of the rows' kind for the table a whole \
+             run gives"
+        ));
+    }
+    nested_pass(plan, ctx, rows, 0);
+    None
+}
