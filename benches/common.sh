@@ -29,3 +29,20 @@ peer_grid() {
         --jobs "$jobs" --out "$out.part" >/dev/null 2>&1
     mv "$out.part" "$out"
 }
+
+# scaling_record BIN ROOT WORK N: benches/scaling.sh's record of N samples, WORK/rN.csv (the
+# piezo system, noise 0.02, 5 % spikes of 1-3, seed 7), and its job WORK/jN.json (estimation on
+# the first three quarters, validation on the rest; nB, nF 2..5 x 5 log-spaced k in [0.1, 2];
+# output WORK/outN).
+scaling_record() {
+    local bin=$1 root=$2 work=$3 n=$4
+    local est=$((n * 3 / 4))
+    "$bin" simulate --system "$root/jobs/data/piezo_system.json" --out "$work/r$n.csv" --n "$n" --seed 7 \
+        --noise-std 0.02 --outlier-prob 0.05 --outlier-range 1,3 >/dev/null 2>&1
+    cat >"$work/j$n.json" <<JOB
+{"name": "scaling-$n", "data": {"path": "$work/r$n.csv", "ts": 1e-4, "rows": [1, $est]},
+ "validation": {"rows": [$((est + 1)), $n]},
+ "grid": {"nb": [2, 5], "nf": [2, 5], "k": {"from": 0.1, "to": 2.0, "count": 5, "spacing": "log"}},
+ "output": "$work/out$n"}
+JOB
+}

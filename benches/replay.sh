@@ -16,6 +16,8 @@
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+# shellcheck source=benches/common.sh
+source "$root/benches/common.sh"
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/oesweep-target}
 memory=${MEMORY:-1}
 
@@ -40,15 +42,7 @@ timeout 1200 "$bin" run "$work/paper.json" --threads 2 --quiet --force --profile
 
 # benches/scaling.sh's record and grid at N = 1 000 000.
 n=1000000
-est=$((n * 3 / 4))
-"$bin" simulate --system "$root/jobs/data/piezo_system.json" --out "$work/r$n.csv" --n "$n" --seed 7 \
-    --noise-std 0.02 --outlier-prob 0.05 --outlier-range 1,3 >/dev/null 2>&1
-cat >"$work/j$n.json" <<JOB
-{"name": "scaling-$n", "data": {"path": "$work/r$n.csv", "ts": 1e-4, "rows": [1, $est]},
- "validation": {"rows": [$((est + 1)), $n]},
- "grid": {"nb": [2, 5], "nf": [2, 5], "k": {"from": 0.1, "to": 2.0, "count": 5, "spacing": "log"}},
- "output": "$work/out$n"}
-JOB
+scaling_record "$bin" "$root" "$work" "$n"
 /usr/bin/time -f "%M" -o "$work/rss2" timeout 1200 "$bin" run "$work/j$n.json" --threads 2 --quiet --force \
     --profile "$work/long-profile.json" >/dev/null 2>&1
 
