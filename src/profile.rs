@@ -289,7 +289,8 @@ pub struct Schedule {
     pub tasks: Vec<TaskTime>,
     /// In run order: `read` (reading and checking the job and records, the spectrum left out),
     /// `spectrum`, `setup` (checkpoint, plan, pool), `sweep_serial` (the sweep's wall outside
-    /// its tasks: collecting and sorting the rows) and `write` (reducing and writing).
+    /// its tasks: collecting and sorting the rows), `nested` (the nested pass over the finished
+    /// table, `sweep::nested_pass`; its wall time) and `write` (reducing and writing).
     pub serial: Vec<PartTime>,
     /// Wall seconds from the first task's start to the last task's end.
     pub wall_seconds: f64,

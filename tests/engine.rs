@@ -171,5 +171,5 @@ fn a_profiled_run_counts_every_fit_by_role() {
     let (w1, w2) = (s1.workers.unwrap(), s2.workers.unwrap());
     assert_eq!((w1.threads, w1.live, w2.threads, w2.live), (1, 1, 2, 2));
     let parts: Vec<&str> = s2.serial.iter().map(|p| p.part).collect();
-    assert_eq!(parts, ["read", "spectrum", "setup", "sweep_serial", "write"]);
+    assert_eq!(parts, ["read", "spectrum", "setup", "sweep_serial", "nested", "write"]);
 }
