@@ -64,7 +64,9 @@ pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: us
                     .into_iter()
                     .flatten()
                     .filter_map(|k| index.get(&k).map(|&j| &rows[j]))
-                    .filter(|s| s.ok())
+                    // A row read back from a checkpoint a user may have edited: its parameters
+                    // must be its orders' before they are embedded.
+                    .filter(|s| s.ok() && s.fit.b.len() == s.key.nb as usize && s.fit.f.len() == s.key.nf as usize)
                     .filter_map(|s| s.fit.criterion.filter(|v| *v < w * (1.0 - LOWER)).map(|v| (v, s)))
                     // The lower of the two (ties: the smaller nB, listed first).
                     .fold(None, |best: Option<(f64, &CellRow)>, (v, s)| match best {
@@ -75,10 +77,11 @@ pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: us
                     let k_index = key.k_index? as usize;
                     let pair = Structure { nb: key.nb as usize, nf: key.nf as usize, delay: key.delay as usize };
                     let prob = ctx.problem(&pair);
-                    let start = estimate::embed(&ctx.theta(sub), sub.key.nb as usize, sub.key.nf as usize, &prob);
                     let t = Instant::now();
-                    // A panic in the numerics keeps the cell as the walk left it.
+                    // A panic (in the numerics, or an edited row's parameters that do not embed)
+                    // keeps the cell as the walk left it.
                     let fit = catch_unwind(AssertUnwindSafe(|| {
+                        let start = estimate::embed(&ctx.theta(sub), sub.key.nb as usize, sub.key.nf as usize, &prob);
                         workspaces.with(|ws| {
                             ws.role = Role::Back;
                             estimate::fit_huber(&prob, sigma, plan.ks[k_index], &start, &judge, &warm, ws)
