@@ -34,14 +34,17 @@ pub enum Role {
     Top,
     /// A long record's cell polished on the whole record from its head's solution.
     Polish,
+    /// The boundary probe of a pair whose walk ended on the stability boundary, and the walk
+    /// from a probe that won (METHOD.md 5.5).
+    Probe,
     /// Anything else: single fits, the warm fits of the `neighbour` and `best` strategies.
     #[default]
     Other,
 }
 
 impl Role {
-    pub const ALL: [Role; 7] =
-        [Role::LeastSquares, Role::Chain, Role::Creep, Role::Back, Role::Top, Role::Polish, Role::Other];
+    pub const ALL: [Role; 8] =
+        [Role::LeastSquares, Role::Chain, Role::Creep, Role::Back, Role::Top, Role::Polish, Role::Probe, Role::Other];
 
     pub fn as_str(self) -> &'static str {
         match self {
@@ -51,6 +54,7 @@ impl Role {
             Role::Back => "back",
             Role::Top => "top",
             Role::Polish => "polish",
+            Role::Probe => "probe",
             Role::Other => "other",
         }
     }

@@ -185,6 +185,55 @@ fn a_boundary_fit_is_not_returned_when_a_lower_interior_fit_is_within_reach() {
     assert_eq!(one.start, "guess");
 }
 
+/// The sweep's walk of the same record (OE(12,12) over five k, as a job's `chains` strategy
+/// walks a pair) leaves no cell on the stability boundary above the interior fit `fit` reaches:
+/// the pair's boundary probe (METHOD.md 5.5) starts from the same further starts and carries the
+/// winner along k. Before it every cell of this walk ended on the boundary (radius 0.99996 at
+/// k = 0.0875, W 0.279719 against 0.279697 inside).
+#[test]
+fn the_sweeps_walk_leaves_no_boundary_cell_above_an_interior_fit_within_reach() {
+    use oesweep::estimate::chains::{CellOutcome, walk_pair};
+    use oesweep::simulate::{self, NoiseKind, Outliers, SimOptions, SystemSpec};
+    let (b, f) = oe1212();
+    let opts = SimOptions {
+        n: 5000,
+        bits: 10,
+        amplitude: 1.0,
+        seed: 1014,
+        noise_std: 1.0,
+        noise: NoiseKind::Gaussian,
+        outliers: Some(Outliers { probability: 0.05, min: 5.0, max: 15.0 }),
+    };
+    let rec = simulate::generate(&SystemSpec { b, f, delay: 1 }, &opts).unwrap();
+    let prob = Problem { u: &rec.u, y: &rec.y, nb: 12, nf: 12, delay: 1, offset: false, seams: &[] };
+    let (judge, solver) = (Judge::default(), SolverOptions::default());
+    let mut ws = Workspace::new();
+    let ls = estimate::fit_ls(&prob, &judge, &solver, &mut ws);
+    let ks: Vec<(usize, f64)> = [0.05, 0.0875, 0.15, 0.3, 0.6].into_iter().enumerate().collect();
+    let pair = estimate::PairProblem { prob: &prob, sigma: ls.sigma, judge: &judge, opts: &solver };
+    let cells = walk_pair(&pair, &ls.theta(), &ls.alternatives, &ks, &[false; 5], &|| false, &mut ws).unwrap();
+    let one = estimate::fit_one(&prob, 0.0875, &judge, &solver, &mut ws);
+    assert!(!estimate::single::on_boundary(&one.huber));
+    for (i, cell) in cells {
+        let CellOutcome::Fit { fit, start, .. } = cell else { panic!("cell {i} failed") };
+        assert!(
+            !estimate::single::on_boundary(&fit),
+            "k {}: radius {} ({start:?})",
+            fit.k,
+            fit.assessment.max_pole_radius
+        );
+        if i == 1 {
+            let tol = 1e-6 * one.huber.criterion;
+            assert!(
+                fit.criterion <= one.huber.criterion + tol,
+                "{} against fit's {}",
+                fit.criterion,
+                one.huber.criterion
+            );
+        }
+    }
+}
+
 /// `"uncertainty": "bootstrap"` in a job: after the sweep, the bootstrap of each watched pick
 /// (here from one record: the lead `rbic` and the paper's picks) in selection.json, the
 /// summary and the report; the same intervals whatever the thread count.

@@ -83,6 +83,9 @@ pub enum StartKind {
     ChainBack,
     /// A cell refitted from its sub-model's solution at the same k (`sweep::nested`, METHOD.md 5.6).
     Nested,
+    /// A cell of the walk from a pair's boundary probe ([`super::ChainWalk`], METHOD.md 5.5):
+    /// an interior fit that replaced a boundary one (or a lower one).
+    Probe,
 }
 
 impl StartKind {
@@ -96,6 +99,7 @@ impl StartKind {
             StartKind::Chain { .. } => "chain_alt",
             StartKind::ChainBack => "chain_back",
             StartKind::Nested => "nested",
+            StartKind::Probe => "probe",
         }
     }
 }
