@@ -71,7 +71,7 @@ fn ls_row() -> CellRow {
 /// A handful of rows covering every kind: huber ok, ls, failed (nulls, empty b/f), and awkward
 /// floats (negative zero, subnormal, huge, non-terminating binary fractions).
 fn sample_rows() -> Vec<CellRow> {
-    let mut odd = huber_row(2, 1, 3, f64::MIN_POSITIVE / 8.0, 1e300);
+    let mut odd = huber_row(4, 0, 3, f64::MIN_POSITIVE / 8.0, 1e300);
     odd.fit.b = vec![-0.0, 0.0, f64::EPSILON, -1.0 / 3.0];
     odd.fit.f = vec![];
     odd.fit.sigma = Some(-0.0);
@@ -209,6 +209,32 @@ fn read_errors_name_the_file_and_column() {
     let err = read_cells(&partial).unwrap_err();
     let msg = err.to_string();
     assert!(err.is_bad_input() && msg.contains("partial.parquet") && msg.contains("`fit_band`"), "{msg}");
+}
+
+/// A row whose parameters do not fit its orders (an edited checkpoint part or cells.parquet) is
+/// refused when read, naming the row and the column: the nested pass and the exports embed
+/// the parameters by the orders.
+#[test]
+fn a_row_whose_parameters_do_not_fit_its_orders_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cells.parquet");
+    let mut rows = sample_rows();
+    rows[1].fit.f.pop();
+    write_cells(&path, &rows).unwrap();
+    let err = read_cells(&path).unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        err.is_bad_input() && msg.contains("cells.parquet") && msg.contains("row 1") && msg.contains("`f`"),
+        "{msg}"
+    );
+    // Standard deviations may be absent, not of another length.
+    let mut rows = sample_rows();
+    rows[0].evidence.b_std.clear();
+    write_cells(&path, &rows).unwrap();
+    assert!(read_cells(&path).is_ok());
+    rows[0].evidence.b_std.push(1.0);
+    write_cells(&path, &rows).unwrap();
+    assert!(read_cells(&path).unwrap_err().to_string().contains("`b_std`"));
 }
 
 #[test]

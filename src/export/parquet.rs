@@ -183,6 +183,9 @@ fn from_frame(df: &DataFrame) -> std::result::Result<Vec<CellRow>, String> {
             table::columns::set(&mut rows[i], c, v).map_err(|e| format!("{e} (row {i})"))?;
         }
     }
+    if let Some((i, why)) = rows.iter().enumerate().find_map(|(i, r)| r.shape_error().map(|w| (i, w))) {
+        return Err(format!("row {i} ({}): {why}", rows[i].key));
+    }
     Ok(rows)
 }
 

@@ -304,7 +304,10 @@ pub fn row_from_json(obj: &serde_json::Map<String, serde_json::Value>, mut base:
             set(&mut base, c, Value::from_json(c.ty, v).map_err(|e| format!("field `{}`: {e}", c.name))?)?;
         }
     }
-    Ok(base)
+    match base.shape_error() {
+        Some(why) => Err(format!("{}: {why}", base.key)),
+        None => Ok(base),
+    }
 }
 
 #[cfg(test)]

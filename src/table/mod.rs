@@ -285,6 +285,25 @@ impl CellRow {
         self.status == Status::Ok
     }
 
+    /// Why the row's parameters do not fit its orders (None: they do). A row read back from a
+    /// file a user may have edited (a checkpoint part, `cells.parquet`) is refused on this,
+    /// since the nested pass, a resumed chain and the exports embed its parameters by its
+    /// orders. A failed row holds no parameters; standard deviations may be absent.
+    pub fn shape_error(&self) -> Option<String> {
+        let (nb, nf) = (self.key.nb as usize, self.key.nf as usize);
+        let fits = |what: &str, len: usize, want: usize, may_be_empty: bool| {
+            (len != want && !(may_be_empty && len == 0))
+                .then(|| format!("{len} values in `{what}`, its orders need {want}"))
+        };
+        if !self.ok() {
+            return None;
+        }
+        fits("b", self.fit.b.len(), nb, false)
+            .or_else(|| fits("f", self.fit.f.len(), nf, false))
+            .or_else(|| fits("b_std", self.evidence.b_std.len(), nb, true))
+            .or_else(|| fits("f_std", self.evidence.f_std.len(), nf, true))
+    }
+
     /// The same result as `other`: equal in every column but the wall time (two runs of the
     /// same cell, e.g. a cell saved by two shards).
     pub fn same_result(&self, other: &CellRow) -> bool {
