@@ -126,7 +126,8 @@ impl Workspaces {
     }
 }
 
-/// How a sweep continues an earlier run and reports to a checkpoint.
+/// How a sweep continues an earlier run and reports to a checkpoint, and whether it checks
+/// its cells against their sub-models'.
 pub struct Control<'a> {
     /// Rows finished by an earlier run of the same job (one per key; rows of keys seen before
     /// are ignored). Their cells are not computed again and they are part of the outcome.
@@ -135,6 +136,12 @@ pub struct Control<'a> {
     pub on_row: &'a (dyn Fn(&CellRow) + Sync),
     /// Once true, no further cell is started; running cells finish.
     pub stop: &'a AtomicBool,
+    /// The nested check of each pair (METHOD.md 5.6) as a task of the graph: a whole run's.
+    /// A shard's plan lacks the sub-models other shards own, so a shard leaves the check to
+    /// the merge (`nested_pass` over all rows). The check's refits reach the outcome, never
+    /// `on_row`: the checkpoint keeps the walks' rows, from which a resumed run and a merge
+    /// compute the same check.
+    pub nested: bool,
 }
 
 static NEVER: AtomicBool = AtomicBool::new(false);
@@ -144,11 +151,12 @@ fn ignore(_: &CellRow) {}
 impl Control<'static> {
     /// A run from scratch that is never stopped and reports nowhere.
     pub fn none() -> Self {
-        Control { done: Vec::new(), on_row: &ignore, stop: &NEVER }
+        Control { done: Vec::new(), on_row: &ignore, stop: &NEVER, nested: true }
     }
 }
 
-/// Result of a sweep: rows sorted by (method, nb, nf, k_index), `ls` rows first.
+/// Result of a sweep: rows sorted by (method, nb, nf, k_index), `ls` rows first; the Huber rows
+/// after the nested check when [`Control::nested`].
 pub struct Outcome {
     /// Rows of earlier runs and of this one.
     pub rows: Vec<CellRow>,
@@ -183,9 +191,16 @@ pub fn run(plan: &Plan, ctx: &Context, threads: usize, progress: &Progress, cont
         done.entry(row.key).or_insert(row);
     }
     let resumed = done.values().filter(|r| r.is_huber()).count();
-    let new_rows = pool.install(|| run_in_pool(plan, ctx, progress, &done, control.on_row, control.stop));
+    let (new_rows, checked) =
+        pool.install(|| run_in_pool(plan, ctx, progress, &done, control.on_row, control.stop, control.nested));
     let computed = crate::table::huber_rows(&new_rows);
     let mut rows: Vec<CellRow> = done.into_values().chain(new_rows).collect();
+    let mut checked: HashMap<RowKey, CellRow> = checked.into_iter().map(|r| (r.key, r)).collect();
+    for row in &mut rows {
+        if let Some(c) = checked.remove(&row.key) {
+            *row = c;
+        }
+    }
     sort_rows(&mut rows);
     let interrupted = rows.len() < plan.pairs.len() + plan.n_cells();
     let seconds = t0.elapsed().as_secs_f64();
@@ -243,12 +258,16 @@ struct Sweep<'s> {
     /// not found, or a panic while finding them; the phase then finds them itself).
     /// With the seconds they took (part of the `ls` row's).
     own: Vec<Mutex<Option<(estimate::OwnMinima, f64)>>>,
-    /// The Huber rows computed so far.
-    huber: Mutex<Vec<CellRow>>,
+    /// Per plan pair, its Huber rows computed so far.
+    huber: Vec<Mutex<Vec<CellRow>>>,
+    /// Per plan pair, once its nested check is done: its Huber rows (of earlier runs and this
+    /// one) after the check.
+    checked: Vec<OnceLock<Vec<CellRow>>>,
 }
 
 /// The sweep in the pool: every task of [`tasks`] as soon as those it reads from are done, on at
-/// most [`live_workspaces`] threads. Returns the rows computed in this run.
+/// most [`live_workspaces`] threads. Returns the rows computed in this run (as the walks left
+/// them) and, with `nested`, every Huber row after the nested check.
 fn run_in_pool<'s>(
     plan: &'s Plan,
     ctx: &'s Context<'s>,
@@ -256,8 +275,9 @@ fn run_in_pool<'s>(
     done: &'s HashMap<RowKey, CellRow>,
     on_row: &'s (dyn Fn(&CellRow) + Sync),
     stop: &'s AtomicBool,
-) -> Vec<CellRow> {
-    let (tasks, graph) = tasks(plan, ctx.solver.nested_starts);
+    nested: bool,
+) -> (Vec<CellRow>, Vec<CellRow>) {
+    let (tasks, graph) = tasks(plan, ctx.solver.nested_starts, nested);
     let rows = ctx.est.u.len().max(ctx.val.map_or(0, |v| v.u.len()));
     let threads = rayon::current_num_threads();
     let live = live_workspaces(threads, rows);
@@ -286,7 +306,8 @@ fn run_in_pool<'s>(
         subs: plan.ls_sub_models(),
         ls: plan.ls_pairs().iter().map(|_| OnceLock::new()).collect(),
         own: plan.ls_pairs().iter().map(|_| Mutex::new(None)).collect(),
-        huber: Mutex::new(Vec::new()),
+        huber: plan.pairs.iter().map(|_| Mutex::new(Vec::new())).collect(),
+        checked: plan.pairs.iter().map(|_| OnceLock::new()).collect(),
     };
     progress.message("least squares and Huber cells");
     // Without a profile no clock is read.
@@ -299,6 +320,7 @@ fn run_in_pool<'s>(
             Task::Pair(p) if plan.start == StartStrategy::Chains => sweep.k_chain(p),
             Task::Pair(p) => sweep.neighbour_chain(p),
             Task::Cell(cell) => sweep.independent_cell(cell),
+            Task::Nested(p) => sweep.nested_check(p),
         }
         if let (Some(prof), Some(since)) = (profile, since) {
             prof.task(i, since);
@@ -307,11 +329,11 @@ fn run_in_pool<'s>(
     if let (Some(p), Some(t)) = (profile, t) {
         p.tasks_wall(t.elapsed().as_secs_f64());
     }
-    let Sweep { ls, huber, .. } = sweep;
+    let Sweep { ls, huber, checked, .. } = sweep;
     let fresh_ls = ls.into_iter().take(plan.pairs.len()).filter_map(|l| l.into_inner().flatten());
     let mut rows: Vec<CellRow> = fresh_ls.filter(|(_, fresh)| *fresh).map(|(p, _)| p.row).collect();
-    rows.extend(huber.into_inner().unwrap_or_else(|e| e.into_inner()));
-    rows
+    rows.extend(huber.into_iter().flat_map(|h| h.into_inner().unwrap_or_else(|e| e.into_inner())));
+    (rows, checked.into_iter().filter_map(OnceLock::into_inner).flatten().collect())
 }
 
 impl Sweep<'_> {
@@ -329,8 +351,9 @@ impl Sweep<'_> {
         self.ls[p].get().and_then(Option::as_ref)
     }
 
-    fn add_rows(&self, rows: Vec<CellRow>) {
-        self.huber.lock().unwrap_or_else(|e| e.into_inner()).extend(rows);
+    /// Huber rows of plan pair `p` computed in this run.
+    fn add_rows(&self, p: usize, rows: Vec<CellRow>) {
+        self.huber[p].lock().unwrap_or_else(|e| e.into_inner()).extend(rows);
     }
 
     /// Whether pair `p` of `ls_pairs` is fitted in this run: not when an earlier run finished
@@ -454,7 +477,7 @@ impl Sweep<'_> {
         let row = self.workspaces.with(|ws| huber_cell(self.plan, self.ctx, &self.judge, pair_ls, cell, None, ws));
         (self.on_row)(&row);
         self.progress.inc(1);
-        self.add_rows(vec![row]);
+        self.add_rows(cell.pair, vec![row]);
     }
 
     /// Task [`Task::Pair`], start strategy `chains`: pair `p`'s k values walked in increasing
@@ -472,7 +495,7 @@ impl Sweep<'_> {
         let rows = self.workspaces.with(|ws| {
             chain_cells(plan, ctx, judge, pair_ls, p, &order, &keys, ws, &stopped, self.on_row, self.progress)
         });
-        self.add_rows(rows);
+        self.add_rows(p, rows);
     }
 
     /// Task [`Task::Pair`], start strategies `neighbour` and `best`: pair `p` walked from the
@@ -500,6 +523,30 @@ impl Sweep<'_> {
             }
             out
         });
-        self.add_rows(rows);
+        self.add_rows(p, rows);
+    }
+
+    /// Task [`Task::Nested`]: plan pair `p`'s Huber rows, of earlier runs and of this one,
+    /// checked against its sub-models' rows after their checks ([`nested::check_pair`]); after
+    /// a stop they stay as the walks left them (the outcome is an interrupted run's).
+    fn nested_check(&self, p: usize) {
+        let pair = self.plan.pairs[p];
+        let resumed = (0..self.plan.ks.len()).filter_map(|k| self.done.get(&RowKey::huber(&pair, k)).cloned());
+        let mut rows: Vec<CellRow> = resumed.collect();
+        rows.extend(self.huber[p].lock().unwrap_or_else(|e| e.into_inner()).iter().cloned());
+        if !self.stopped() {
+            let subs: Vec<&[CellRow]> = graph::subs_in_plan(self.plan, &self.subs, p)
+                .filter_map(|s| self.checked[s].get())
+                .map(|r| &r[..])
+                .collect();
+            let sub = |key: RowKey| subs.iter().flat_map(|r| r.iter()).find(|r| r.key == key);
+            let cells: Vec<&CellRow> = rows.iter().collect();
+            let (plan, ctx, judge) = (self.plan, self.ctx, &self.judge);
+            let refits = self.workspaces.with(|ws| nested::check_pair(plan, ctx, judge, &cells, &sub, ws));
+            for (at, row) in refits {
+                rows[at] = row;
+            }
+        }
+        let _ = self.checked[p].set(rows);
     }
 }

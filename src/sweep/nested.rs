@@ -19,7 +19,7 @@
 //! relative 1e-6 went from 3672 to 3745 of 3840, for 353 warm fits (+3 % iterations).
 
 use super::{Context, Workspaces};
-use crate::estimate::{self, StartKind};
+use crate::estimate::{self, Judge, StartKind, Workspace};
 use crate::oe::Structure;
 use crate::plan::Plan;
 use crate::profile::Role;
@@ -34,74 +34,104 @@ use std::time::Instant;
 /// ([`estimate::Chains::MERGE`]).
 const LOWER: f64 = estimate::Chains::MERGE;
 
+/// The check of one pair's Huber rows `cells` (METHOD.md 5.6), the rule both the sweep's task
+/// ([`super::graph::Task::Nested`]) and the waves of [`nested_pass`] run: every cell whose
+/// sub-model's cell at the same k (`sub` gives the sub-model's final row of a key, when the
+/// table has it) has a lower W is refitted warm from that sub-model's solution on `ws`.
+/// Returns the refits that came out lower, as (position in `cells`, row). A cell reads only its
+/// own row and its sub-models' final rows, so the result does not depend on when it runs.
+pub(super) fn check_pair<'r>(
+    plan: &Plan,
+    ctx: &Context,
+    judge: &Judge,
+    cells: &[&CellRow],
+    sub: &dyn Fn(RowKey) -> Option<&'r CellRow>,
+    ws: &mut Workspace,
+) -> Vec<(usize, CellRow)> {
+    let warm = ctx.solver.huber_warm();
+    let mut refits = Vec::new();
+    for (at, row) in cells.iter().enumerate() {
+        if let Some(refit) = check_cell(plan, ctx, judge, &warm, row, sub, ws) {
+            refits.push((at, refit));
+        }
+    }
+    refits
+}
+
+/// [`check_pair`] of one cell: its refit when lower.
+fn check_cell<'r>(
+    plan: &Plan,
+    ctx: &Context,
+    judge: &Judge,
+    warm: &estimate::SolverOptions,
+    row: &CellRow,
+    sub: &dyn Fn(RowKey) -> Option<&'r CellRow>,
+    ws: &mut Workspace,
+) -> Option<CellRow> {
+    let w = row.fit.criterion.filter(|w| row.ok() && w.is_finite())?;
+    let sigma = row.fit.sigma?;
+    let key = row.key;
+    let sub =
+        [key.nb.checked_sub(1).map(|nb| RowKey { nb, ..key }), key.nf.checked_sub(1).map(|nf| RowKey { nf, ..key })]
+            .into_iter()
+            .flatten()
+            .filter_map(sub)
+            // A row read back from a checkpoint a user may have edited: its parameters must be its
+            // orders' before they are embedded.
+            .filter(|s| s.ok() && s.fit.b.len() == s.key.nb as usize && s.fit.f.len() == s.key.nf as usize)
+            .filter_map(|s| s.fit.criterion.filter(|v| *v < w * (1.0 - LOWER)).map(|v| (v, s)))
+            // The lower of the two (ties: the smaller nB, listed first).
+            .fold(None, |best: Option<(f64, &CellRow)>, (v, s)| match best {
+                Some((b, _)) if b <= v => best,
+                _ => Some((v, s)),
+            })?
+            .1;
+    let k_index = key.k_index? as usize;
+    let pair = Structure { nb: key.nb as usize, nf: key.nf as usize, delay: key.delay as usize };
+    let prob = ctx.problem(&pair);
+    let t = Instant::now();
+    // A panic (in the numerics, or an edited row's parameters that do not embed) keeps the cell
+    // as the walk left it.
+    let fit = catch_unwind(AssertUnwindSafe(|| {
+        let start = estimate::embed(&ctx.theta(sub), sub.key.nb as usize, sub.key.nf as usize, &prob);
+        ws.role = Role::Back;
+        estimate::fit_huber(&prob, sigma, plan.ks[k_index], &start, judge, warm, ws)
+    }))
+    .ok()?;
+    (fit.criterion < w).then(|| {
+        let seconds = row.fit.seconds + t.elapsed().as_secs_f64();
+        ctx.with_offset(CellRow::from_huber(&fit, &pair, sigma, k_index, StartKind::Nested, seconds))
+    })
+}
+
 /// Refit every Huber cell of `rows` whose sub-model's cell at the same k has a lower W, warm from
-/// that sub-model's solution, in waves of nB + nF, on `threads` workers (0: all cores). Returns
-/// how many cells came out lower.
+/// that sub-model's solution ([`check_pair`]), in waves of nB + nF, the pairs of a wave in
+/// parallel on `threads` workers (0: all cores): the pass of a merge, whose rows come from
+/// shards that each lacked sub-models (a whole run checks its pairs as tasks of its graph).
+/// Returns how many cells came out lower.
 pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: usize) -> usize {
     let index: HashMap<RowKey, usize> = rows.iter().enumerate().map(|(i, r)| (r.key, i)).collect();
-    let mut waves: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
+    // Per wave, per pair (nB, nF, delay), its Huber rows.
+    type Wave = BTreeMap<(u32, u32, u32), Vec<usize>>;
+    let mut waves: BTreeMap<u32, Wave> = BTreeMap::new();
     for (i, row) in rows.iter().enumerate().filter(|(_, r)| r.is_huber()) {
-        waves.entry(row.key.nb + row.key.nf).or_default().push(i);
+        let k = row.key;
+        waves.entry(k.nb + k.nf).or_default().entry((k.nb, k.nf, k.delay)).or_default().push(i);
     }
     let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(threads).build() else { return 0 };
     let t0 = Instant::now();
     let judge = ctx.judge();
     let workspaces = Workspaces::new(ctx);
-    let warm = ctx.solver.huber_warm();
     let mut lowered = 0;
     for wave in waves.values() {
+        let table = &*rows;
+        let sub = |key: RowKey| index.get(&key).map(|&j| &table[j]);
         let refits: Vec<(usize, CellRow)> = pool.install(|| {
             wave.par_iter()
-                .filter_map(|&i| {
-                    let row = &rows[i];
-                    let w = row.fit.criterion.filter(|w| row.ok() && w.is_finite())?;
-                    let sigma = row.fit.sigma?;
-                    let key = row.key;
-                    let sub = [
-                        key.nb.checked_sub(1).map(|nb| RowKey { nb, ..key }),
-                        key.nf.checked_sub(1).map(|nf| RowKey { nf, ..key }),
-                    ]
-                    .into_iter()
-                    .flatten()
-                    .filter_map(|k| index.get(&k).map(|&j| &rows[j]))
-                    // A row read back from a checkpoint a user may have edited: its parameters
-                    // must be its orders' before they are embedded.
-                    .filter(|s| s.ok() && s.fit.b.len() == s.key.nb as usize && s.fit.f.len() == s.key.nf as usize)
-                    .filter_map(|s| s.fit.criterion.filter(|v| *v < w * (1.0 - LOWER)).map(|v| (v, s)))
-                    // The lower of the two (ties: the smaller nB, listed first).
-                    .fold(None, |best: Option<(f64, &CellRow)>, (v, s)| match best {
-                        Some((b, _)) if b <= v => best,
-                        _ => Some((v, s)),
-                    })?
-                    .1;
-                    let k_index = key.k_index? as usize;
-                    let pair = Structure { nb: key.nb as usize, nf: key.nf as usize, delay: key.delay as usize };
-                    let prob = ctx.problem(&pair);
-                    let t = Instant::now();
-                    // A panic (in the numerics, or an edited row's parameters that do not embed)
-                    // keeps the cell as the walk left it.
-                    let fit = catch_unwind(AssertUnwindSafe(|| {
-                        let start = estimate::embed(&ctx.theta(sub), sub.key.nb as usize, sub.key.nf as usize, &prob);
-                        workspaces.with(|ws| {
-                            ws.role = Role::Back;
-                            estimate::fit_huber(&prob, sigma, plan.ks[k_index], &start, &judge, &warm, ws)
-                        })
-                    }))
-                    .ok()?;
-                    (fit.criterion < w).then(|| {
-                        let seconds = row.fit.seconds + t.elapsed().as_secs_f64();
-                        (
-                            i,
-                            ctx.with_offset(CellRow::from_huber(
-                                &fit,
-                                &pair,
-                                sigma,
-                                k_index,
-                                StartKind::Nested,
-                                seconds,
-                            )),
-                        )
-                    })
+                .flat_map_iter(|(_, of_pair)| {
+                    let cells: Vec<&CellRow> = of_pair.iter().map(|&i| &table[i]).collect();
+                    let refits = workspaces.with(|ws| check_pair(plan, ctx, &judge, &cells, &sub, ws));
+                    refits.into_iter().map(|(at, row)| (of_pair[at], row))
                 })
                 .collect()
         });
@@ -111,7 +141,7 @@ pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: us
         }
     }
     // For `benches/replay.py` a serial part (its wall time on this run's threads): its waves
-    // are not tasks of the sweep's graph, and a part counted as serial only lowers the bound.
+    // are not tasks of a graph, and a part counted as serial only lowers the bound.
     if let Some(p) = &ctx.profile {
         p.serial("nested", t0.elapsed().as_secs_f64());
     }
