@@ -7,9 +7,11 @@
 //! pair's k values in increasing order ([`estimate::chains::walk_pair`]), one task per pair
 //! (`Sweep::k_chain`); `ls` makes every cell a task of its own (`Sweep::independent_cell`);
 //! `neighbour`/`best` walk the pair from the largest k down, one task per pair
-//! (`Sweep::neighbour_chain`). No barrier between them: a pair's Huber cells start as soon as
-//! its least-squares fit is done, and the ready task on the longest estimated path to the end
-//! runs first. Each task is sequential and deterministic and reads nothing but the results of
+//! (`Sweep::neighbour_chain`). In a whole run ([`Control::nested`]) each Huber cell is then
+//! checked against its sub-models' cells at the same k (METHOD.md 5.6, `Sweep::nested_check`),
+//! after the checks of those. No barrier between them: a pair's Huber cells start as soon as
+//! its least-squares fit is done, a cell's check as soon as its row and its sub-models' checked
+//! rows are, and the ready task on the longest estimated path to the end runs first. Each task is sequential and deterministic and reads nothing but the results of
 //! the tasks it comes after, so the table does not depend on the thread count or the order.
 //! One [`Workspace`] per running task ([`Workspaces`]), at most [`live_workspaces`] of them.
 //! A panic inside a fit is caught and becomes a failed row; the sweep goes on.
@@ -136,7 +138,7 @@ pub struct Control<'a> {
     pub on_row: &'a (dyn Fn(&CellRow) + Sync),
     /// Once true, no further cell is started; running cells finish.
     pub stop: &'a AtomicBool,
-    /// The nested check of each pair (METHOD.md 5.6) as a task of the graph: a whole run's.
+    /// The nested check of each cell (METHOD.md 5.6) as a task of the graph: a whole run's.
     /// A shard's plan lacks the sub-models other shards own, so a shard leaves the check to
     /// the merge (`nested_pass` over all rows). The check's refits reach the outcome, never
     /// `on_row`: the checkpoint keeps the walks' rows, from which a resumed run and a merge
@@ -260,9 +262,9 @@ struct Sweep<'s> {
     own: Vec<Mutex<Option<(estimate::OwnMinima, f64)>>>,
     /// Per plan pair, its Huber rows computed so far.
     huber: Vec<Mutex<Vec<CellRow>>>,
-    /// Per plan pair, once its nested check is done: its Huber rows (of earlier runs and this
-    /// one) after the check.
-    checked: Vec<OnceLock<Vec<CellRow>>>,
+    /// Per cell of `plan.cells()`, once its nested check is done: its row (of an earlier run or
+    /// this one; None: none, stopped before it) after the check.
+    checked: Vec<OnceLock<Option<CellRow>>>,
 }
 
 /// The sweep in the pool: every task of [`tasks`] as soon as those it reads from are done, on at
@@ -307,7 +309,7 @@ fn run_in_pool<'s>(
         ls: plan.ls_pairs().iter().map(|_| OnceLock::new()).collect(),
         own: plan.ls_pairs().iter().map(|_| Mutex::new(None)).collect(),
         huber: plan.pairs.iter().map(|_| Mutex::new(Vec::new())).collect(),
-        checked: plan.pairs.iter().map(|_| OnceLock::new()).collect(),
+        checked: (0..plan.n_cells()).map(|_| OnceLock::new()).collect(),
     };
     progress.message("least squares and Huber cells");
     // Without a profile no clock is read.
@@ -320,7 +322,7 @@ fn run_in_pool<'s>(
             Task::Pair(p) if plan.start == StartStrategy::Chains => sweep.k_chain(p),
             Task::Pair(p) => sweep.neighbour_chain(p),
             Task::Cell(cell) => sweep.independent_cell(cell),
-            Task::Nested(p) => sweep.nested_check(p),
+            Task::Nested(cell) => sweep.nested_check(cell),
         }
         if let (Some(prof), Some(since)) = (profile, since) {
             prof.task(i, since);
@@ -333,7 +335,7 @@ fn run_in_pool<'s>(
     let fresh_ls = ls.into_iter().take(plan.pairs.len()).filter_map(|l| l.into_inner().flatten());
     let mut rows: Vec<CellRow> = fresh_ls.filter(|(_, fresh)| *fresh).map(|(p, _)| p.row).collect();
     rows.extend(huber.into_iter().flat_map(|h| h.into_inner().unwrap_or_else(|e| e.into_inner())));
-    (rows, checked.into_iter().filter_map(OnceLock::into_inner).flatten().collect())
+    (rows, checked.into_iter().filter_map(|c| c.into_inner().flatten()).collect())
 }
 
 impl Sweep<'_> {
@@ -526,27 +528,28 @@ impl Sweep<'_> {
         self.add_rows(p, rows);
     }
 
-    /// Task [`Task::Nested`]: plan pair `p`'s Huber rows, of earlier runs and of this one,
-    /// checked against its sub-models' rows after their checks ([`nested::check_pair`]); after
-    /// a stop they stay as the walks left them (the outcome is an interrupted run's).
-    fn nested_check(&self, p: usize) {
-        let pair = self.plan.pairs[p];
-        let resumed = (0..self.plan.ks.len()).filter_map(|k| self.done.get(&RowKey::huber(&pair, k)).cloned());
-        let mut rows: Vec<CellRow> = resumed.collect();
-        rows.extend(self.huber[p].lock().unwrap_or_else(|e| e.into_inner()).iter().cloned());
-        if !self.stopped() {
-            let subs: Vec<&[CellRow]> = graph::subs_in_plan(self.plan, &self.subs, p)
-                .filter_map(|s| self.checked[s].get())
-                .map(|r| &r[..])
-                .collect();
-            let sub = |key: RowKey| subs.iter().flat_map(|r| r.iter()).find(|r| r.key == key);
-            let cells: Vec<&CellRow> = rows.iter().collect();
-            let (plan, ctx, judge) = (self.plan, self.ctx, &self.judge);
-            let refits = self.workspaces.with(|ws| nested::check_pair(plan, ctx, judge, &cells, &sub, ws));
-            for (at, row) in refits {
-                rows[at] = row;
+    /// Task [`Task::Nested`]: the cell's row, of an earlier run or of this one, checked against
+    /// its sub-models' rows at the same k after their checks ([`nested::check_cell`]); after a
+    /// stop it stays as the walk left it (the outcome is an interrupted run's).
+    fn nested_check(&self, cell: Cell) {
+        let nks = self.plan.ks.len();
+        let key = self.huber_key(cell);
+        let row = match self.done.get(&key) {
+            Some(row) => Some(row.clone()),
+            None => {
+                self.huber[cell.pair].lock().unwrap_or_else(|e| e.into_inner()).iter().find(|r| r.key == key).cloned()
             }
-        }
-        let _ = self.checked[p].set(rows);
+        };
+        let checked = row.map(|row| {
+            if self.stopped() {
+                return row;
+            }
+            let subs: Vec<&CellRow> = graph::subs_in_plan(self.plan, &self.subs, cell.pair)
+                .filter_map(|s| self.checked[s * nks + cell.k_index].get()?.as_ref())
+                .collect();
+            let sub = |key: RowKey| subs.iter().copied().find(|r| r.key == key);
+            nested::check_cell(self.plan, self.ctx, &self.judge, &self.workspaces, &row, &sub).unwrap_or(row)
+        });
+        let _ = self.checked[cell.pair * nks + cell.k_index].set(checked);
     }
 }

@@ -1,15 +1,17 @@
-//! The nested pass over a finished table (METHOD.md 5.6): no Huber cell is left above a
-//! sub-model's cell at the same k.
+//! The nested check (METHOD.md 5.6): no Huber cell is left above a sub-model's cell at the
+//! same k.
 //!
 //! OE(nB - 1, nF) and OE(nB, nF - 1) are OE(nB, nF) with one coefficient zero, so the
 //! sub-model's solution embedded ([`estimate::embed`]) is a point of the larger model with the
 //! same criterion W at the same gamma... when both share sigma, which they do not: gamma = k
 //! sigma of each pair's own least-squares fit. The embedded point is therefore only a start:
 //! where a sub-model's cell has the lower W, the cell is refitted warm from it and keeps the
-//! refit when that is lower (start `nested`). The pairs are visited in waves of increasing
-//! nB + nF, so that a refitted sub-model hands its new solution on; the cells of one wave are
-//! independent of each other, so the pass runs them in parallel and its result does not
-//! depend on the thread count, the shard split or a resume (it reads the rows only).
+//! refit when that is lower (start `nested`). A cell is checked after its sub-models' cells at
+//! the same k, so that a refitted sub-model hands its new solution on: in a whole run as a task
+//! of the sweep's graph per cell ([`check_cell`], after the pair's Huber walk and the
+//! sub-models' checks), in a merge of shards by [`nested_pass`] in waves of increasing nB + nF.
+//! A check reads only the walks' rows and the sub-models' final rows, so its result does not
+//! depend on the thread count, the order, the shard split or a resume.
 //!
 //! Why: the chains of each pair walk on their own, and on over-parameterised pairs they settle
 //! in basins that a smaller model's walk beats: on the paper grid 289 of 3840 cells were above
@@ -19,7 +21,7 @@
 //! relative 1e-6 went from 3672 to 3745 of 3840, for 353 warm fits (+3 % iterations).
 
 use super::{Context, Workspaces};
-use crate::estimate::{self, Judge, StartKind, Workspace};
+use crate::estimate::{self, Judge, StartKind};
 use crate::oe::Structure;
 use crate::plan::Plan;
 use crate::profile::Role;
@@ -34,39 +36,19 @@ use std::time::Instant;
 /// ([`estimate::Chains::MERGE`]).
 const LOWER: f64 = estimate::Chains::MERGE;
 
-/// The check of one pair's Huber rows `cells` (METHOD.md 5.6), the rule both the sweep's task
-/// ([`super::graph::Task::Nested`]) and the waves of [`nested_pass`] run: every cell whose
-/// sub-model's cell at the same k (`sub` gives the sub-model's final row of a key, when the
-/// table has it) has a lower W is refitted warm from that sub-model's solution on `ws`.
-/// Returns the refits that came out lower, as (position in `cells`, row). A cell reads only its
-/// own row and its sub-models' final rows, so the result does not depend on when it runs.
-pub(super) fn check_pair<'r>(
+/// The check of one Huber cell (METHOD.md 5.6), the rule both the sweep's task
+/// ([`super::graph::Task::Nested`]) and the waves of [`nested_pass`] run: when a sub-model's
+/// cell at the same k (`sub` gives a key's final row, when the table has it) has a lower W, the
+/// cell is refitted warm from that sub-model's solution (on a workspace of `workspaces`).
+/// Returns the refit when it came out lower. It reads only the cell's row and its sub-models'
+/// final rows, so the result does not depend on when it runs.
+pub(super) fn check_cell<'r>(
     plan: &Plan,
     ctx: &Context,
     judge: &Judge,
-    cells: &[&CellRow],
-    sub: &dyn Fn(RowKey) -> Option<&'r CellRow>,
-    ws: &mut Workspace,
-) -> Vec<(usize, CellRow)> {
-    let warm = ctx.solver.huber_warm();
-    let mut refits = Vec::new();
-    for (at, row) in cells.iter().enumerate() {
-        if let Some(refit) = check_cell(plan, ctx, judge, &warm, row, sub, ws) {
-            refits.push((at, refit));
-        }
-    }
-    refits
-}
-
-/// [`check_pair`] of one cell: its refit when lower.
-fn check_cell<'r>(
-    plan: &Plan,
-    ctx: &Context,
-    judge: &Judge,
-    warm: &estimate::SolverOptions,
+    workspaces: &Workspaces,
     row: &CellRow,
     sub: &dyn Fn(RowKey) -> Option<&'r CellRow>,
-    ws: &mut Workspace,
 ) -> Option<CellRow> {
     let w = row.fit.criterion.filter(|w| row.ok() && w.is_finite())?;
     let sigma = row.fit.sigma?;
@@ -89,13 +71,16 @@ fn check_cell<'r>(
     let k_index = key.k_index? as usize;
     let pair = Structure { nb: key.nb as usize, nf: key.nf as usize, delay: key.delay as usize };
     let prob = ctx.problem(&pair);
+    let warm = ctx.solver.huber_warm();
     let t = Instant::now();
     // A panic (in the numerics, or an edited row's parameters that do not embed) keeps the cell
     // as the walk left it.
     let fit = catch_unwind(AssertUnwindSafe(|| {
         let start = estimate::embed(&ctx.theta(sub), sub.key.nb as usize, sub.key.nf as usize, &prob);
-        ws.role = Role::Back;
-        estimate::fit_huber(&prob, sigma, plan.ks[k_index], &start, judge, warm, ws)
+        workspaces.with(|ws| {
+            ws.role = Role::Back;
+            estimate::fit_huber(&prob, sigma, plan.ks[k_index], &start, judge, &warm, ws)
+        })
     }))
     .ok()?;
     (fit.criterion < w).then(|| {
@@ -105,18 +90,15 @@ fn check_cell<'r>(
 }
 
 /// Refit every Huber cell of `rows` whose sub-model's cell at the same k has a lower W, warm from
-/// that sub-model's solution ([`check_pair`]), in waves of nB + nF, the pairs of a wave in
+/// that sub-model's solution ([`check_cell`]), in waves of nB + nF, the cells of a wave in
 /// parallel on `threads` workers (0: all cores): the pass of a merge, whose rows come from
-/// shards that each lacked sub-models (a whole run checks its pairs as tasks of its graph).
+/// shards that each lacked sub-models (a whole run checks its cells as tasks of its graph).
 /// Returns how many cells came out lower.
 pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: usize) -> usize {
     let index: HashMap<RowKey, usize> = rows.iter().enumerate().map(|(i, r)| (r.key, i)).collect();
-    // Per wave, per pair (nB, nF, delay), its Huber rows.
-    type Wave = BTreeMap<(u32, u32, u32), Vec<usize>>;
-    let mut waves: BTreeMap<u32, Wave> = BTreeMap::new();
+    let mut waves: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
     for (i, row) in rows.iter().enumerate().filter(|(_, r)| r.is_huber()) {
-        let k = row.key;
-        waves.entry(k.nb + k.nf).or_default().entry((k.nb, k.nf, k.delay)).or_default().push(i);
+        waves.entry(row.key.nb + row.key.nf).or_default().push(i);
     }
     let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(threads).build() else { return 0 };
     let t0 = Instant::now();
@@ -128,11 +110,7 @@ pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: us
         let sub = |key: RowKey| index.get(&key).map(|&j| &table[j]);
         let refits: Vec<(usize, CellRow)> = pool.install(|| {
             wave.par_iter()
-                .flat_map_iter(|(_, of_pair)| {
-                    let cells: Vec<&CellRow> = of_pair.iter().map(|&i| &table[i]).collect();
-                    let refits = workspaces.with(|ws| check_pair(plan, ctx, &judge, &cells, &sub, ws));
-                    refits.into_iter().map(|(at, row)| (of_pair[at], row))
-                })
+                .filter_map(|&i| check_cell(plan, ctx, &judge, &workspaces, &table[i], &sub).map(|row| (i, row)))
                 .collect()
         });
         lowered += refits.len();
