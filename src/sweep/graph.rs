@@ -43,12 +43,13 @@ const NESTED_CHECK: u64 = 1;
 /// on their own, the least-squares phase of a pair finished after its own minima and its
 /// sub-models' phases, the Huber cells of a pair after its least-squares phase, and no other
 /// barrier; with `nested_check`, the nested check of each cell after the task that computes it
-/// and its sub-models' checks at the same k. The ready task on the longest estimated path to the end first
-/// ([`schedule::Graph::with_bottom_levels`]), with a task's cost estimated as nB + nF per cell
-/// (per-iteration work grows with the parameter count), [`LS_OWN_CELLS`] and
+/// and its sub-models' checks at the same k. The ready task on the longest estimated path to
+/// the end first ([`schedule::Graph::with_bottom_levels`]), with a task's cost estimated as
+/// nB + nF per cell (per-iteration work grows with the parameter count), [`LS_OWN_CELLS`] and
 /// [`LS_NESTED_CELLS`] cells for the two parts of a least-squares phase and [`NESTED_CHECK`]
-/// units for a nested check. Task `i` is the finish of pair `i` of
-/// `plan.ls_pairs()` (as the sub-model indices are), the own minima follow them.
+/// units for a nested check. Task `i` is the finish of pair `i` of `plan.ls_pairs()` (as the
+/// sub-model indices are), the own minima follow them; the checks come last, in the order of
+/// `plan.cells()`.
 pub(super) fn tasks(plan: &Plan, nested_starts: bool, nested_check: bool) -> (Vec<Task>, schedule::Graph) {
     let ls_pairs = plan.ls_pairs();
     let subs = plan.ls_sub_models();

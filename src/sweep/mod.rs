@@ -11,8 +11,9 @@
 //! checked against its sub-models' cells at the same k (METHOD.md 5.6, `Sweep::nested_check`),
 //! after the checks of those. No barrier between them: a pair's Huber cells start as soon as
 //! its least-squares fit is done, a cell's check as soon as its row and its sub-models' checked
-//! rows are, and the ready task on the longest estimated path to the end runs first. Each task is sequential and deterministic and reads nothing but the results of
-//! the tasks it comes after, so the table does not depend on the thread count or the order.
+//! rows are, and the ready task on the longest estimated path to the end runs first. Each task
+//! is sequential and deterministic and reads nothing but the results of the tasks it comes
+//! after, so the table does not depend on the thread count or the order.
 //! One [`Workspace`] per running task ([`Workspaces`]), at most [`live_workspaces`] of them.
 //! A panic inside a fit is caught and becomes a failed row; the sweep goes on.
 //!
