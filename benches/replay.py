@@ -2,8 +2,10 @@
 """Replays a run's `--profile` onto T = 1, 2, 4, 8, 16, 32 workers (issue 39).
 
 The profile lists the tasks the worker pool ran (kind, pair, the tasks each one waited for, its
-priority, its worker seconds) and the run's serial parts (reading, spectrum, setup, the sweep's
-own serial work, reducing and writing; wall seconds). A replay lays the tasks on T workers by
+priority, its worker seconds; a whole run's nested checks, METHOD.md 5.6, are tasks of kind
+`nested`, one per cell) and the run's serial parts (reading, spectrum, setup, the sweep's own
+serial work, reducing and writing; wall seconds; `nested` for a profile whose nested pass ran
+in waves after the sweep, before the checks were tasks). A replay lays the tasks on T workers by
 list scheduling: whenever a worker is free it starts the ready task that comes first, a task
 being ready once the tasks it waits for are done. The makespan is the serial parts plus the
 tasks' schedule; makespan(1) / makespan(T) bounds the speed-up on T cores, assuming each task
@@ -17,7 +19,8 @@ Schedules (one column each):
   waves    the schedule before issue 39: a pair's least-squares phase one task (its own minima
            and its finish), in waves of equal nB + nF with a barrier after each wave and before
            the Huber tasks, a wave's pairs in plan order, the Huber tasks by nB + nF (largest
-           first, ties plan order); no cap;
+           first, ties plan order), the nested checks (if any) after their own dependencies
+           too; no cap;
   lpt      longest measured task first among the ready ones (the sweep's dependencies, no cap):
            what a perfect cost estimate would add to `sweep`.
 Also printed: the lower bound max(serial + critical path, serial + work / T) that no schedule
@@ -123,7 +126,9 @@ def waves(tasks):
         after.append(list(by_size[size]))
         barrier = len(seconds) - 1
     for t in rest:
-        after[t["id"]] = [barrier] if barrier is not None else []
+        # A nested check also waits for its cell's Huber task and its sub-models' checks.
+        own = list(t["after"]) if t["kind"] == "nested" else []
+        after[t["id"]] = own + ([barrier] if barrier is not None else [])
     n = len(tasks)
 
     def key(i):

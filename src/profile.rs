@@ -243,15 +243,16 @@ pub struct PhaseTime {
 pub struct TaskTime {
     /// Its index in [`Schedule::tasks`].
     pub id: usize,
-    /// `least_squares` (a pair's least-squares phase), `chains` (a pair's Huber cells under the
-    /// `chains` strategy: the walk, the backward pass, the whole-record refits, the evidence),
-    /// `neighbour` (a pair's Huber cells under `neighbour`/`best`) or `cell` (one Huber cell
-    /// under `ls`).
+    /// `least_squares_own` (a pair's own least-squares minima), `least_squares` (a pair's
+    /// least-squares phase finished), `chains` (a pair's Huber cells under the `chains`
+    /// strategy: the walk, the backward pass, the whole-record refits, the evidence),
+    /// `neighbour` (a pair's Huber cells under `neighbour`/`best`), `cell` (one Huber cell under
+    /// `ls`) or `nested` (one Huber cell's nested check, METHOD.md 5.6).
     pub kind: &'static str,
     pub nb: usize,
     pub nf: usize,
     pub delay: usize,
-    /// The cell's k index (kind `cell` only).
+    /// The cell's k index (kinds `cell` and `nested` only).
     pub k_index: Option<usize>,
     /// The ids of the tasks whose results it reads: it starts once they are done.
     pub after: Vec<usize>,
@@ -293,8 +294,9 @@ pub struct Schedule {
     pub tasks: Vec<TaskTime>,
     /// In run order: `read` (reading and checking the job and records, the spectrum left out),
     /// `spectrum`, `setup` (checkpoint, plan, pool), `sweep_serial` (the sweep's wall outside
-    /// its tasks: collecting and sorting the rows), `nested` (the nested pass over the finished
-    /// table, `sweep::nested_pass`; its wall time) and `write` (reducing and writing).
+    /// its tasks: collecting and sorting the rows), `nested` (the waves of `sweep::nested_pass`,
+    /// their wall time, when a profiled run runs them: a whole run checks its cells as tasks)
+    /// and `write` (reducing and writing).
     pub serial: Vec<PartTime>,
     /// Wall seconds from the first task's start to the last task's end.
     pub wall_seconds: f64,

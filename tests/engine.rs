@@ -153,17 +153,19 @@ fn a_profiled_run_counts_every_fit_by_role() {
     assert!(two.seconds(oesweep::profile::Phase::Sweep) > 0.0, "{two:?}");
 
     // The tasks the pool ran: the same list whatever the thread count, apart from the times;
-    // per pair its own least-squares minima, its least-squares finish and its Huber walk, each
-    // task after tasks listed in it; the serial parts in run order.
+    // per pair its own least-squares minima, its least-squares finish and its Huber walk, per
+    // cell its nested check (METHOD.md 5.6), each task after tasks listed in it; the serial parts
+    // in run order (the nested check is no serial part of a whole run).
     let (s1, s2) = (&one.schedule, &two.schedule);
     let untimed = |s: &oesweep::profile::Schedule| {
         s.tasks.iter().map(|t| oesweep::profile::TaskTime { seconds: 0.0, ..t.clone() }).collect::<Vec<_>>()
     };
     assert_eq!(untimed(s1), untimed(s2));
-    assert_eq!(s2.tasks.len(), 3 * PAIRS);
+    assert_eq!(s2.tasks.len(), 3 * PAIRS + PAIRS * KS);
     for kind in ["least_squares_own", "least_squares", "chains"] {
         assert_eq!(s2.tasks.iter().filter(|t| t.kind == kind).count(), PAIRS, "{kind}");
     }
+    assert_eq!(s2.tasks.iter().filter(|t| t.kind == "nested" && t.k_index.is_some()).count(), PAIRS * KS);
     for t in &s2.tasks {
         assert!(t.after.iter().all(|&j| j < s2.tasks.len() && j != t.id), "{t:?}");
         assert!(t.seconds >= 0.0);
@@ -171,5 +173,5 @@ fn a_profiled_run_counts_every_fit_by_role() {
     let (w1, w2) = (s1.workers.unwrap(), s2.workers.unwrap());
     assert_eq!((w1.threads, w1.live, w2.threads, w2.live), (1, 1, 2, 2));
     let parts: Vec<&str> = s2.serial.iter().map(|p| p.part).collect();
-    assert_eq!(parts, ["read", "spectrum", "setup", "sweep_serial", "nested", "write"]);
+    assert_eq!(parts, ["read", "spectrum", "setup", "sweep_serial", "write"]);
 }

@@ -339,7 +339,7 @@ fn run_loaded(
         w.done.store(resumed_huber, Ordering::Relaxed);
     }
     let ctx = sweep::Context { profile: profile.clone(), ..p.context() };
-    let mut outcome = {
+    let outcome = {
         let never = AtomicBool::new(false);
         let stop: &AtomicBool = opts.watch.as_ref().map_or(&never, |w| &w.stop);
         let tx = writer.sender();
@@ -350,7 +350,8 @@ fn run_loaded(
                 w.done.fetch_add(1, Ordering::Relaxed);
             }
         };
-        let control = sweep::Control { done: existing.rows, on_row: &on_row, stop };
+        let nested = opts.shard.is_none();
+        let control = sweep::Control { done: existing.rows, on_row: &on_row, stop, nested };
         if let Some(prof) = &profile {
             prof.serial("setup", setup.elapsed().as_secs_f64());
         }
@@ -393,11 +394,9 @@ fn run_loaded(
         return Ok(result);
     }
 
-    // A whole run: the results, then the checkpoint has served (if deleting it fails, a rerun
-    // finds every cell done and merges again), then the report.
-    // The checkpoint keeps the walks' rows; the pass is a function of all of them, so a resumed
-    // run and a merge of shards give the same table.
-    sweep::nested_pass(&plan, &ctx, &mut outcome.rows, opts.threads);
+    // A whole run (its rows nested-checked by the sweep): the results, then the checkpoint has
+    // served (if deleting it fails, a rerun finds every cell done and merges again), then the
+    // report.
     let writing = Instant::now();
     let selection = write_results(&out, &p.job, &outcome.rows, Some(&p.inputs), opts.threads)?;
     if let Some(prof) = &profile {

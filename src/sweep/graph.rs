@@ -22,6 +22,11 @@ pub(super) enum Task {
     Pair(usize),
     /// One Huber cell under `ls`; after its pair's least-squares phase.
     Cell(Cell),
+    /// The nested check of one Huber cell (METHOD.md 5.6, `nested::check_cell`): after the task
+    /// that computes the cell and the checks of its sub-models' cells at the same k (their
+    /// final rows are what it reads). Per cell rather than per pair: a pair's refits then do
+    /// not queue one behind the other along the chain of sub-models up the grid.
+    Nested(Cell),
 }
 
 /// A pair's least-squares phase costs about this many of its Huber cells, its own minima
@@ -30,26 +35,31 @@ pub(super) enum Task {
 /// times a Huber cell of its pair, on the 131 072-sample record 4 times.
 const LS_OWN_CELLS: u64 = 6;
 const LS_NESTED_CELLS: u64 = 2;
+/// A cell's nested check is mostly a comparison (on the paper grid 353 of 3840 cells were
+/// refitted, by warm fits): one unit, where a Huber cell weighs nB + nF.
+const NESTED_CHECK: u64 = 1;
 
 /// The sweep's tasks, their dependencies and priorities: every pair's own least-squares minima
 /// on their own, the least-squares phase of a pair finished after its own minima and its
 /// sub-models' phases, the Huber cells of a pair after its least-squares phase, and no other
-/// barrier; the ready task on the longest estimated path to the end first
-/// ([`schedule::Graph::with_bottom_levels`]), with a task's cost estimated as nB + nF per cell
-/// (per-iteration work grows with the parameter count), [`LS_OWN_CELLS`] and
-/// [`LS_NESTED_CELLS`] cells for the two parts of a least-squares phase. Task `i` is the
-/// finish of pair `i` of `plan.ls_pairs()` (as the sub-model indices are), the own minima
-/// follow them.
-pub(super) fn tasks(plan: &Plan, nested_starts: bool) -> (Vec<Task>, schedule::Graph) {
+/// barrier; with `nested_check`, the nested check of each cell after the task that computes it
+/// and its sub-models' checks at the same k. The ready task on the longest estimated path to
+/// the end first ([`schedule::Graph::with_bottom_levels`]), with a task's cost estimated as
+/// nB + nF per cell (per-iteration work grows with the parameter count), [`LS_OWN_CELLS`] and
+/// [`LS_NESTED_CELLS`] cells for the two parts of a least-squares phase and [`NESTED_CHECK`]
+/// units for a nested check. Task `i` is the finish of pair `i` of `plan.ls_pairs()` (as the
+/// sub-model indices are), the own minima follow them; the checks come last, in the order of
+/// `plan.cells()`.
+pub(super) fn tasks(plan: &Plan, nested_starts: bool, nested_check: bool) -> (Vec<Task>, schedule::Graph) {
     let ls_pairs = plan.ls_pairs();
     let subs = plan.ls_sub_models();
     let n = ls_pairs.len();
     let size = |s: &Structure| (s.nb + s.nf) as u64;
     let mut tasks: Vec<Task> = (0..n).map(Task::Ls).chain((0..n).map(Task::LsOwn)).collect();
     let mut after: Vec<Vec<usize>> = subs
-        .into_iter()
+        .iter()
         .enumerate()
-        .map(|(i, s)| std::iter::once(n + i).chain(if nested_starts { s } else { Vec::new() }).collect())
+        .map(|(i, s)| std::iter::once(n + i).chain(s.iter().copied().filter(|_| nested_starts)).collect())
         .chain((0..n).map(|_| Vec::new()))
         .collect();
     let mut cost: Vec<u64> = ls_pairs
@@ -57,9 +67,12 @@ pub(super) fn tasks(plan: &Plan, nested_starts: bool) -> (Vec<Task>, schedule::G
         .map(|s| LS_NESTED_CELLS * size(s))
         .chain(ls_pairs.iter().map(|s| LS_OWN_CELLS * size(s)))
         .collect();
+    // Per cell of `plan.cells()`, the Huber task that computes it.
+    let mut huber: Vec<usize> = Vec::with_capacity(plan.n_cells());
     match plan.start {
         StartStrategy::Ls => {
             for cell in plan.cells() {
+                huber.push(tasks.len());
                 tasks.push(Task::Cell(cell));
                 after.push(vec![cell.pair]);
                 cost.push(size(&plan.pairs[cell.pair]));
@@ -67,13 +80,33 @@ pub(super) fn tasks(plan: &Plan, nested_starts: bool) -> (Vec<Task>, schedule::G
         }
         StartStrategy::Chains | StartStrategy::Neighbour | StartStrategy::Best => {
             for (p, pair) in plan.pairs.iter().enumerate() {
+                huber.extend(std::iter::repeat_n(tasks.len(), plan.ks.len()));
                 tasks.push(Task::Pair(p));
                 after.push(vec![p]);
                 cost.push(plan.ks.len() as u64 * size(pair));
             }
         }
     }
+    if nested_check {
+        // The checks follow in the order of `plan.cells()` (pair-major) from `first`.
+        let first = tasks.len();
+        let nks = plan.ks.len();
+        for (cell, walk) in plan.cells().into_iter().zip(huber) {
+            tasks.push(Task::Nested(cell));
+            let checks = subs_in_plan(plan, &subs, cell.pair).map(|s| first + s * nks + cell.k_index);
+            after.push(std::iter::once(walk).chain(checks).collect());
+            cost.push(NESTED_CHECK);
+        }
+    }
     (tasks, schedule::Graph::with_bottom_levels(after, &cost))
+}
+
+/// The sub-models of plan pair `p` that are plan pairs (indices into `plan.pairs`), from
+/// `subs` = `plan.ls_sub_models()`: those whose rows the table holds, so the nested checks of
+/// `p`'s cells read.
+pub(super) fn subs_in_plan<'a>(plan: &Plan, subs: &'a [Vec<usize>], p: usize) -> impl Iterator<Item = usize> + 'a {
+    let own = plan.pairs.len();
+    subs[p].iter().copied().filter(move |&s| s < own)
 }
 
 /// The workspaces' budget on a long record ([`live_workspaces`]).
@@ -106,6 +139,7 @@ pub(super) fn task_times(plan: &Plan, tasks: &[Task], graph: &schedule::Graph) -
                 Task::Pair(p) if plan.start == StartStrategy::Chains => ("chains", plan.pairs[p], None),
                 Task::Pair(p) => ("neighbour", plan.pairs[p], None),
                 Task::Cell(c) => ("cell", plan.pairs[c.pair], Some(c.k_index)),
+                Task::Nested(c) => ("nested", plan.pairs[c.pair], Some(c.k_index)),
             };
             TaskTime {
                 id,
@@ -149,36 +183,61 @@ mod tests {
 
     #[test]
     fn every_task_comes_after_what_it_reads() {
-        let plan = Plan {
+        let grid = |start| Plan {
             pairs: (1..=3).flat_map(|nb| (1..=3).map(move |nf| Structure { nb, nf, delay: 1 })).collect(),
             ks: vec![0.1, 1.0],
-            start: StartStrategy::Chains,
+            start,
             ls_support: Vec::new(),
         };
-        let n = plan.pairs.len();
-        let (tasks, graph) = tasks(&plan, true);
-        assert_eq!(tasks.len(), 3 * n);
-        let subs = plan.ls_sub_models();
-        for (i, t) in tasks.iter().enumerate() {
-            let mut expected = match *t {
-                Task::LsOwn(_) => vec![],
-                Task::Ls(p) => std::iter::once(n + p).chain(subs[p].iter().copied()).collect(),
-                Task::Pair(p) => vec![p],
-                Task::Cell(c) => vec![c.pair],
+        for start in [StartStrategy::Chains, StartStrategy::Ls] {
+            let plan = grid(start);
+            let n = plan.pairs.len();
+            let (tasks, graph) = tasks(&plan, true, true);
+            let huber = if start == StartStrategy::Ls { plan.n_cells() } else { n };
+            assert_eq!(tasks.len(), 2 * n + huber + plan.n_cells());
+            let subs = plan.ls_sub_models();
+            let id = |task: Task| tasks.iter().position(|t| *t == task).unwrap();
+            for (i, t) in tasks.iter().enumerate() {
+                let mut expected = match *t {
+                    Task::LsOwn(_) => vec![],
+                    Task::Ls(p) => std::iter::once(n + p).chain(subs[p].iter().copied()).collect(),
+                    Task::Pair(p) => vec![p],
+                    Task::Cell(c) => vec![c.pair],
+                    // The task that computes the cell and its sub-models' checks at its k.
+                    Task::Nested(c) => (0..tasks.len())
+                        .filter(|&j| match tasks[j] {
+                            Task::Pair(q) => q == c.pair,
+                            Task::Cell(d) => d == c,
+                            Task::Nested(d) => d.k_index == c.k_index && subs[c.pair].contains(&d.pair),
+                            _ => false,
+                        })
+                        .collect(),
+                };
+                let mut after = graph.after[i].clone();
+                expected.sort();
+                after.sort();
+                assert_eq!(after, expected, "{t:?}");
+            }
+            // OE(3,3) is checked after OE(2,3) and OE(3,2), OE(1,1) after no other check.
+            let checks = |pair| {
+                let after = &graph.after[id(Task::Nested(Cell { pair, k_index: 1 }))];
+                after.iter().filter(|&&j| matches!(tasks[j], Task::Nested(_))).count()
             };
-            let mut after = graph.after[i].clone();
-            expected.sort();
-            after.sort();
-            assert_eq!(after, expected, "{t:?}");
+            assert_eq!((checks(n - 1), checks(0)), (2, 0));
+            // A single worker runs every task, those on the longest path (own minima, then the
+            // chain of least-squares finishes up the grid) before the Huber walks, and the
+            // largest pair's check last.
+            let order = graph.serial_order();
+            assert_eq!(order.len(), tasks.len());
+            assert!(matches!(tasks[order[0]], Task::LsOwn(_)));
+            assert!(matches!(tasks[*order.last().unwrap()], Task::Nested(Cell { pair, .. }) if pair == n - 1));
+            // Without the nested check (a shard) no check tasks; without nested starts the
+            // least-squares finishes wait for their own minima only.
+            let (shard, _) = super::tasks(&plan, true, false);
+            assert_eq!(shard.len(), 2 * n + huber);
+            assert!(!shard.iter().any(|t| matches!(t, Task::Nested(_))));
+            let (_, alone) = super::tasks(&plan, false, true);
+            assert!((0..n).all(|p| alone.after[p] == [n + p]));
         }
-        // A single worker runs every task, those on the longest path (own minima, then the
-        // chain of least-squares finishes up the grid) before the Huber walks.
-        let order = graph.serial_order();
-        assert_eq!(order.len(), tasks.len());
-        assert!(matches!(tasks[order[0]], Task::LsOwn(_)));
-        assert!(matches!(tasks[*order.last().unwrap()], Task::Pair(_)));
-        // Without nested starts the least-squares finishes wait for their own minima only.
-        let (_, alone) = super::tasks(&plan, false);
-        assert!((0..n).all(|p| alone.after[p] == [n + p]));
     }
 }

@@ -7,10 +7,13 @@
 //! pair's k values in increasing order ([`estimate::chains::walk_pair`]), one task per pair
 //! (`Sweep::k_chain`); `ls` makes every cell a task of its own (`Sweep::independent_cell`);
 //! `neighbour`/`best` walk the pair from the largest k down, one task per pair
-//! (`Sweep::neighbour_chain`). No barrier between them: a pair's Huber cells start as soon as
-//! its least-squares fit is done, and the ready task on the longest estimated path to the end
-//! runs first. Each task is sequential and deterministic and reads nothing but the results of
-//! the tasks it comes after, so the table does not depend on the thread count or the order.
+//! (`Sweep::neighbour_chain`). In a whole run ([`Control::nested`]) each Huber cell is then
+//! checked against its sub-models' cells at the same k (METHOD.md 5.6, `Sweep::nested_check`),
+//! after the checks of those. No barrier between them: a pair's Huber cells start as soon as
+//! its least-squares fit is done, a cell's check as soon as its row and its sub-models' checked
+//! rows are, and the ready task on the longest estimated path to the end runs first. Each task
+//! is sequential and deterministic and reads nothing but the results of the tasks it comes
+//! after, so the table does not depend on the thread count or the order.
 //! One [`Workspace`] per running task ([`Workspaces`]), at most [`live_workspaces`] of them.
 //! A panic inside a fit is caught and becomes a failed row; the sweep goes on.
 //!
@@ -126,7 +129,8 @@ impl Workspaces {
     }
 }
 
-/// How a sweep continues an earlier run and reports to a checkpoint.
+/// How a sweep continues an earlier run and reports to a checkpoint, and whether it checks
+/// its cells against their sub-models'.
 pub struct Control<'a> {
     /// Rows finished by an earlier run of the same job (one per key; rows of keys seen before
     /// are ignored). Their cells are not computed again and they are part of the outcome.
@@ -135,6 +139,12 @@ pub struct Control<'a> {
     pub on_row: &'a (dyn Fn(&CellRow) + Sync),
     /// Once true, no further cell is started; running cells finish.
     pub stop: &'a AtomicBool,
+    /// The nested check of each cell (METHOD.md 5.6) as a task of the graph: a whole run's.
+    /// A shard's plan lacks the sub-models other shards own, so a shard leaves the check to
+    /// the merge (`nested_pass` over all rows). The check's refits reach the outcome, never
+    /// `on_row`: the checkpoint keeps the walks' rows, from which a resumed run and a merge
+    /// compute the same check.
+    pub nested: bool,
 }
 
 static NEVER: AtomicBool = AtomicBool::new(false);
@@ -144,11 +154,12 @@ fn ignore(_: &CellRow) {}
 impl Control<'static> {
     /// A run from scratch that is never stopped and reports nowhere.
     pub fn none() -> Self {
-        Control { done: Vec::new(), on_row: &ignore, stop: &NEVER }
+        Control { done: Vec::new(), on_row: &ignore, stop: &NEVER, nested: true }
     }
 }
 
-/// Result of a sweep: rows sorted by (method, nb, nf, k_index), `ls` rows first.
+/// Result of a sweep: rows sorted by (method, nb, nf, k_index), `ls` rows first; the Huber rows
+/// after the nested check when [`Control::nested`].
 pub struct Outcome {
     /// Rows of earlier runs and of this one.
     pub rows: Vec<CellRow>,
@@ -183,9 +194,16 @@ pub fn run(plan: &Plan, ctx: &Context, threads: usize, progress: &Progress, cont
         done.entry(row.key).or_insert(row);
     }
     let resumed = done.values().filter(|r| r.is_huber()).count();
-    let new_rows = pool.install(|| run_in_pool(plan, ctx, progress, &done, control.on_row, control.stop));
+    let (new_rows, checked) =
+        pool.install(|| run_in_pool(plan, ctx, progress, &done, control.on_row, control.stop, control.nested));
     let computed = crate::table::huber_rows(&new_rows);
     let mut rows: Vec<CellRow> = done.into_values().chain(new_rows).collect();
+    let mut checked: HashMap<RowKey, CellRow> = checked.into_iter().map(|r| (r.key, r)).collect();
+    for row in &mut rows {
+        if let Some(c) = checked.remove(&row.key) {
+            *row = c;
+        }
+    }
     sort_rows(&mut rows);
     let interrupted = rows.len() < plan.pairs.len() + plan.n_cells();
     let seconds = t0.elapsed().as_secs_f64();
@@ -243,12 +261,16 @@ struct Sweep<'s> {
     /// not found, or a panic while finding them; the phase then finds them itself).
     /// With the seconds they took (part of the `ls` row's).
     own: Vec<Mutex<Option<(estimate::OwnMinima, f64)>>>,
-    /// The Huber rows computed so far.
-    huber: Mutex<Vec<CellRow>>,
+    /// Per plan pair, its Huber rows computed so far.
+    huber: Vec<Mutex<Vec<CellRow>>>,
+    /// Per cell of `plan.cells()`, once its nested check is done: its row (of an earlier run or
+    /// this one; None: none, stopped before it) after the check.
+    checked: Vec<OnceLock<Option<CellRow>>>,
 }
 
 /// The sweep in the pool: every task of [`tasks`] as soon as those it reads from are done, on at
-/// most [`live_workspaces`] threads. Returns the rows computed in this run.
+/// most [`live_workspaces`] threads. Returns the rows computed in this run (as the walks left
+/// them) and, with `nested`, every Huber row after the nested check.
 fn run_in_pool<'s>(
     plan: &'s Plan,
     ctx: &'s Context<'s>,
@@ -256,8 +278,9 @@ fn run_in_pool<'s>(
     done: &'s HashMap<RowKey, CellRow>,
     on_row: &'s (dyn Fn(&CellRow) + Sync),
     stop: &'s AtomicBool,
-) -> Vec<CellRow> {
-    let (tasks, graph) = tasks(plan, ctx.solver.nested_starts);
+    nested: bool,
+) -> (Vec<CellRow>, Vec<CellRow>) {
+    let (tasks, graph) = tasks(plan, ctx.solver.nested_starts, nested);
     let rows = ctx.est.u.len().max(ctx.val.map_or(0, |v| v.u.len()));
     let threads = rayon::current_num_threads();
     let live = live_workspaces(threads, rows);
@@ -286,7 +309,8 @@ fn run_in_pool<'s>(
         subs: plan.ls_sub_models(),
         ls: plan.ls_pairs().iter().map(|_| OnceLock::new()).collect(),
         own: plan.ls_pairs().iter().map(|_| Mutex::new(None)).collect(),
-        huber: Mutex::new(Vec::new()),
+        huber: plan.pairs.iter().map(|_| Mutex::new(Vec::new())).collect(),
+        checked: (0..plan.n_cells()).map(|_| OnceLock::new()).collect(),
     };
     progress.message("least squares and Huber cells");
     // Without a profile no clock is read.
@@ -299,6 +323,7 @@ fn run_in_pool<'s>(
             Task::Pair(p) if plan.start == StartStrategy::Chains => sweep.k_chain(p),
             Task::Pair(p) => sweep.neighbour_chain(p),
             Task::Cell(cell) => sweep.independent_cell(cell),
+            Task::Nested(cell) => sweep.nested_check(cell),
         }
         if let (Some(prof), Some(since)) = (profile, since) {
             prof.task(i, since);
@@ -307,11 +332,11 @@ fn run_in_pool<'s>(
     if let (Some(p), Some(t)) = (profile, t) {
         p.tasks_wall(t.elapsed().as_secs_f64());
     }
-    let Sweep { ls, huber, .. } = sweep;
+    let Sweep { ls, huber, checked, .. } = sweep;
     let fresh_ls = ls.into_iter().take(plan.pairs.len()).filter_map(|l| l.into_inner().flatten());
     let mut rows: Vec<CellRow> = fresh_ls.filter(|(_, fresh)| *fresh).map(|(p, _)| p.row).collect();
-    rows.extend(huber.into_inner().unwrap_or_else(|e| e.into_inner()));
-    rows
+    rows.extend(huber.into_iter().flat_map(|h| h.into_inner().unwrap_or_else(|e| e.into_inner())));
+    (rows, checked.into_iter().filter_map(|c| c.into_inner().flatten()).collect())
 }
 
 impl Sweep<'_> {
@@ -329,8 +354,9 @@ impl Sweep<'_> {
         self.ls[p].get().and_then(Option::as_ref)
     }
 
-    fn add_rows(&self, rows: Vec<CellRow>) {
-        self.huber.lock().unwrap_or_else(|e| e.into_inner()).extend(rows);
+    /// Huber rows of plan pair `p` computed in this run.
+    fn add_rows(&self, p: usize, rows: Vec<CellRow>) {
+        self.huber[p].lock().unwrap_or_else(|e| e.into_inner()).extend(rows);
     }
 
     /// Whether pair `p` of `ls_pairs` is fitted in this run: not when an earlier run finished
@@ -454,7 +480,7 @@ impl Sweep<'_> {
         let row = self.workspaces.with(|ws| huber_cell(self.plan, self.ctx, &self.judge, pair_ls, cell, None, ws));
         (self.on_row)(&row);
         self.progress.inc(1);
-        self.add_rows(vec![row]);
+        self.add_rows(cell.pair, vec![row]);
     }
 
     /// Task [`Task::Pair`], start strategy `chains`: pair `p`'s k values walked in increasing
@@ -472,7 +498,7 @@ impl Sweep<'_> {
         let rows = self.workspaces.with(|ws| {
             chain_cells(plan, ctx, judge, pair_ls, p, &order, &keys, ws, &stopped, self.on_row, self.progress)
         });
-        self.add_rows(rows);
+        self.add_rows(p, rows);
     }
 
     /// Task [`Task::Pair`], start strategies `neighbour` and `best`: pair `p` walked from the
@@ -500,6 +526,31 @@ impl Sweep<'_> {
             }
             out
         });
-        self.add_rows(rows);
+        self.add_rows(p, rows);
+    }
+
+    /// Task [`Task::Nested`]: the cell's row, of an earlier run or of this one, checked against
+    /// its sub-models' rows at the same k after their checks ([`nested::check_cell`]); after a
+    /// stop it stays as the walk left it (the outcome is an interrupted run's).
+    fn nested_check(&self, cell: Cell) {
+        let nks = self.plan.ks.len();
+        let key = self.huber_key(cell);
+        let row = match self.done.get(&key) {
+            Some(row) => Some(row.clone()),
+            None => {
+                self.huber[cell.pair].lock().unwrap_or_else(|e| e.into_inner()).iter().find(|r| r.key == key).cloned()
+            }
+        };
+        let checked = row.map(|row| {
+            if self.stopped() {
+                return row;
+            }
+            let subs: Vec<&CellRow> = graph::subs_in_plan(self.plan, &self.subs, cell.pair)
+                .filter_map(|s| self.checked[s * nks + cell.k_index].get()?.as_ref())
+                .collect();
+            let sub = |key: RowKey| subs.iter().copied().find(|r| r.key == key);
+            nested::check_cell(self.plan, self.ctx, &self.judge, &self.workspaces, &row, &sub).unwrap_or(row)
+        });
+        let _ = self.checked[cell.pair * nks + cell.k_index].set(checked);
     }
 }

@@ -1,15 +1,17 @@
-//! The nested pass over a finished table (METHOD.md 5.6): no Huber cell is left above a
-//! sub-model's cell at the same k.
+//! The nested check (METHOD.md 5.6): no Huber cell is left above a sub-model's cell at the
+//! same k.
 //!
 //! OE(nB - 1, nF) and OE(nB, nF - 1) are OE(nB, nF) with one coefficient zero, so the
 //! sub-model's solution embedded ([`estimate::embed`]) is a point of the larger model with the
 //! same criterion W at the same gamma... when both share sigma, which they do not: gamma = k
 //! sigma of each pair's own least-squares fit. The embedded point is therefore only a start:
 //! where a sub-model's cell has the lower W, the cell is refitted warm from it and keeps the
-//! refit when that is lower (start `nested`). The pairs are visited in waves of increasing
-//! nB + nF, so that a refitted sub-model hands its new solution on; the cells of one wave are
-//! independent of each other, so the pass runs them in parallel and its result does not
-//! depend on the thread count, the shard split or a resume (it reads the rows only).
+//! refit when that is lower (start `nested`). A cell is checked after its sub-models' cells at
+//! the same k, so that a refitted sub-model hands its new solution on: in a whole run as a task
+//! of the sweep's graph per cell ([`check_cell`], after the pair's Huber walk and the
+//! sub-models' checks), in a merge of shards by [`nested_pass`] in waves of increasing nB + nF.
+//! A check reads only the walks' rows and the sub-models' final rows, so its result does not
+//! depend on the thread count, the order, the shard split or a resume.
 //!
 //! Why: the chains of each pair walk on their own, and on over-parameterised pairs they settle
 //! in basins that a smaller model's walk beats: on the paper grid 289 of 3840 cells were above
@@ -19,7 +21,7 @@
 //! relative 1e-6 went from 3672 to 3745 of 3840, for 353 warm fits (+3 % iterations).
 
 use super::{Context, Workspaces};
-use crate::estimate::{self, StartKind};
+use crate::estimate::{self, Judge, StartKind};
 use crate::oe::Structure;
 use crate::plan::Plan;
 use crate::profile::Role;
@@ -34,9 +36,64 @@ use std::time::Instant;
 /// ([`estimate::Chains::MERGE`]).
 const LOWER: f64 = estimate::Chains::MERGE;
 
+/// The check of one Huber cell (METHOD.md 5.6), the rule both the sweep's task
+/// ([`super::graph::Task::Nested`]) and the waves of [`nested_pass`] run: when a sub-model's
+/// cell at the same k (`sub` gives a key's final row, when the table has it) has a lower W, the
+/// cell is refitted warm from that sub-model's solution (on a workspace of `workspaces`).
+/// Returns the refit when it came out lower. It reads only the cell's row and its sub-models'
+/// final rows, so the result does not depend on when it runs.
+pub(super) fn check_cell<'r>(
+    plan: &Plan,
+    ctx: &Context,
+    judge: &Judge,
+    workspaces: &Workspaces,
+    row: &CellRow,
+    sub: &dyn Fn(RowKey) -> Option<&'r CellRow>,
+) -> Option<CellRow> {
+    let w = row.fit.criterion.filter(|w| row.ok() && w.is_finite())?;
+    let sigma = row.fit.sigma?;
+    let key = row.key;
+    let sub =
+        [key.nb.checked_sub(1).map(|nb| RowKey { nb, ..key }), key.nf.checked_sub(1).map(|nf| RowKey { nf, ..key })]
+            .into_iter()
+            .flatten()
+            .filter_map(sub)
+            // A row read back from a checkpoint a user may have edited: its parameters must be its
+            // orders' before they are embedded.
+            .filter(|s| s.ok() && s.fit.b.len() == s.key.nb as usize && s.fit.f.len() == s.key.nf as usize)
+            .filter_map(|s| s.fit.criterion.filter(|v| *v < w * (1.0 - LOWER)).map(|v| (v, s)))
+            // The lower of the two (ties: the smaller nB, listed first).
+            .fold(None, |best: Option<(f64, &CellRow)>, (v, s)| match best {
+                Some((b, _)) if b <= v => best,
+                _ => Some((v, s)),
+            })?
+            .1;
+    let k_index = key.k_index? as usize;
+    let pair = Structure { nb: key.nb as usize, nf: key.nf as usize, delay: key.delay as usize };
+    let prob = ctx.problem(&pair);
+    let warm = ctx.solver.huber_warm();
+    let t = Instant::now();
+    // A panic (in the numerics, or an edited row's parameters that do not embed) keeps the cell
+    // as the walk left it.
+    let fit = catch_unwind(AssertUnwindSafe(|| {
+        let start = estimate::embed(&ctx.theta(sub), sub.key.nb as usize, sub.key.nf as usize, &prob);
+        workspaces.with(|ws| {
+            ws.role = Role::Back;
+            estimate::fit_huber(&prob, sigma, plan.ks[k_index], &start, judge, &warm, ws)
+        })
+    }))
+    .ok()?;
+    (fit.criterion < w).then(|| {
+        let seconds = row.fit.seconds + t.elapsed().as_secs_f64();
+        ctx.with_offset(CellRow::from_huber(&fit, &pair, sigma, k_index, StartKind::Nested, seconds))
+    })
+}
+
 /// Refit every Huber cell of `rows` whose sub-model's cell at the same k has a lower W, warm from
-/// that sub-model's solution, in waves of nB + nF, on `threads` workers (0: all cores). Returns
-/// how many cells came out lower.
+/// that sub-model's solution ([`check_cell`]), in waves of nB + nF, the cells of a wave in
+/// parallel on `threads` workers (0: all cores): the pass of a merge, whose rows come from
+/// shards that each lacked sub-models (a whole run checks its cells as tasks of its graph).
+/// Returns how many cells came out lower.
 pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: usize) -> usize {
     let index: HashMap<RowKey, usize> = rows.iter().enumerate().map(|(i, r)| (r.key, i)).collect();
     let mut waves: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
@@ -47,62 +104,13 @@ pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: us
     let t0 = Instant::now();
     let judge = ctx.judge();
     let workspaces = Workspaces::new(ctx);
-    let warm = ctx.solver.huber_warm();
     let mut lowered = 0;
     for wave in waves.values() {
+        let table = &*rows;
+        let sub = |key: RowKey| index.get(&key).map(|&j| &table[j]);
         let refits: Vec<(usize, CellRow)> = pool.install(|| {
             wave.par_iter()
-                .filter_map(|&i| {
-                    let row = &rows[i];
-                    let w = row.fit.criterion.filter(|w| row.ok() && w.is_finite())?;
-                    let sigma = row.fit.sigma?;
-                    let key = row.key;
-                    let sub = [
-                        key.nb.checked_sub(1).map(|nb| RowKey { nb, ..key }),
-                        key.nf.checked_sub(1).map(|nf| RowKey { nf, ..key }),
-                    ]
-                    .into_iter()
-                    .flatten()
-                    .filter_map(|k| index.get(&k).map(|&j| &rows[j]))
-                    // A row read back from a checkpoint a user may have edited: its parameters
-                    // must be its orders' before they are embedded.
-                    .filter(|s| s.ok() && s.fit.b.len() == s.key.nb as usize && s.fit.f.len() == s.key.nf as usize)
-                    .filter_map(|s| s.fit.criterion.filter(|v| *v < w * (1.0 - LOWER)).map(|v| (v, s)))
-                    // The lower of the two (ties: the smaller nB, listed first).
-                    .fold(None, |best: Option<(f64, &CellRow)>, (v, s)| match best {
-                        Some((b, _)) if b <= v => best,
-                        _ => Some((v, s)),
-                    })?
-                    .1;
-                    let k_index = key.k_index? as usize;
-                    let pair = Structure { nb: key.nb as usize, nf: key.nf as usize, delay: key.delay as usize };
-                    let prob = ctx.problem(&pair);
-                    let t = Instant::now();
-                    // A panic (in the numerics, or an edited row's parameters that do not embed)
-                    // keeps the cell as the walk left it.
-                    let fit = catch_unwind(AssertUnwindSafe(|| {
-                        let start = estimate::embed(&ctx.theta(sub), sub.key.nb as usize, sub.key.nf as usize, &prob);
-                        workspaces.with(|ws| {
-                            ws.role = Role::Back;
-                            estimate::fit_huber(&prob, sigma, plan.ks[k_index], &start, &judge, &warm, ws)
-                        })
-                    }))
-                    .ok()?;
-                    (fit.criterion < w).then(|| {
-                        let seconds = row.fit.seconds + t.elapsed().as_secs_f64();
-                        (
-                            i,
-                            ctx.with_offset(CellRow::from_huber(
-                                &fit,
-                                &pair,
-                                sigma,
-                                k_index,
-                                StartKind::Nested,
-                                seconds,
-                            )),
-                        )
-                    })
-                })
+                .filter_map(|&i| check_cell(plan, ctx, &judge, &workspaces, &table[i], &sub).map(|row| (i, row)))
                 .collect()
         });
         lowered += refits.len();
@@ -111,7 +119,7 @@ pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: us
         }
     }
     // For `benches/replay.py` a serial part (its wall time on this run's threads): its waves
-    // are not tasks of the sweep's graph, and a part counted as serial only lowers the bound.
+    // are not tasks of a graph, and a part counted as serial only lowers the bound.
     if let Some(p) = &ctx.profile {
         p.serial("nested", t0.elapsed().as_secs_f64());
     }
