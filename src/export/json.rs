@@ -10,7 +10,12 @@ use std::path::Path;
 /// Write a serde value as pretty JSON (with a trailing newline) atomically: temporary file in the
 /// same folder, fsync, rename. Fails with [`crate::Error::Output`] naming `path`.
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
-    super::write_atomically(path, |file| {
+    stage_json(path, value)?.commit()
+}
+
+/// [`write_json`] up to the rename ([`super::stage`]).
+pub(crate) fn stage_json<T: Serialize>(path: &Path, value: &T) -> Result<super::Staged> {
+    super::stage(path, |file| {
         let mut w = BufWriter::new(file);
         serde_json::to_writer_pretty(&mut w, value).map_err(|e| format!("cannot write JSON: {e}"))?;
         w.write_all(b"\n").and_then(|_| w.flush()).map_err(|e| format!("cannot write JSON: {e}"))
