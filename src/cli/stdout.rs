@@ -17,10 +17,10 @@ thread_local! {
 /// Writes `args` to standard output unless a write of the command failed before.
 pub(crate) fn write(args: std::fmt::Arguments<'_>) {
     FAILED.with_borrow_mut(|failed| {
-        if failed.is_none() {
-            if let Err(e) = std::io::stdout().lock().write_fmt(args) {
-                *failed = Some(e);
-            }
+        if failed.is_none()
+            && let Err(e) = std::io::stdout().lock().write_fmt(args)
+        {
+            *failed = Some(e);
         }
     });
 }

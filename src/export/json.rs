@@ -16,7 +16,8 @@ pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
 /// [`write_json`] up to the rename ([`super::stage`]).
 pub(crate) fn stage_json<T: Serialize>(path: &Path, value: &T) -> Result<super::Staged> {
     super::stage(path, |file| {
-        let mut w = BufWriter::new(file);
+        // selection.json runs to megabytes (every pick's candidates): written in large blocks.
+        let mut w = BufWriter::with_capacity(1 << 20, file);
         serde_json::to_writer_pretty(&mut w, value).map_err(|e| format!("cannot write JSON: {e}"))?;
         w.write_all(b"\n").and_then(|_| w.flush()).map_err(|e| format!("cannot write JSON: {e}"))
     })
