@@ -10,7 +10,8 @@ use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg;
 use faer::perm::Perm;
-use faer::{Accum, Conj, Mat, MatRef, Par};
+use faer::prelude::{Reborrow, ReborrowMut};
+use faer::{Accum, Conj, Mat, MatMut, MatRef, Par};
 
 const SEQ: Par = Par::Seq;
 
@@ -23,20 +24,26 @@ pub fn mul(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
 
 /// The factors of `a` (m >= n, or square) packed by faer's LU and QR: the unit lower
 /// trapezoid (m x n) and the upper triangle (n x n).
-fn split(packed: Mat<f64>) -> (Mat<f64>, Mat<f64>) {
+fn split(mut packed: Mat<f64>) -> (Mat<f64>, Mat<f64>) {
+    let upper = split_in_place(packed.as_mut());
+    (packed, upper)
+}
+
+/// [`split`] without a copy of the packed factors: `packed` becomes the unit lower trapezoid;
+/// returns the upper triangle.
+fn split_in_place(mut packed: MatMut<'_, f64>) -> Mat<f64> {
     let n = packed.ncols();
     let mut upper = Mat::zeros(n, n);
-    upper.copy_from_triangular_upper(packed.get(..n, ..n));
-    let mut lower = packed;
+    upper.copy_from_triangular_upper(packed.rb().get(..n, ..n));
     for j in 0..n {
-        for i in 0..j.min(lower.nrows()) {
-            lower[(i, j)] = 0.0;
+        for i in 0..j.min(packed.nrows()) {
+            packed[(i, j)] = 0.0;
         }
-        if j < lower.nrows() {
-            lower[(j, j)] = 1.0;
+        if j < packed.nrows() {
+            packed[(j, j)] = 1.0;
         }
     }
-    (lower, upper)
+    upper
 }
 
 /// LU of a square matrix with partial pivoting.
@@ -186,16 +193,22 @@ pub fn qr_r(a: MatRef<'_, f64>) -> Mat<f64> {
 /// The least-squares solution of `a x = b` (`a` with at least as many rows as columns) by
 /// QR with column pivoting.
 pub fn lstsq(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    lstsq_in_place(a.to_owned().as_mut(), b)
+}
+
+/// [`lstsq`] that factors `a` where it is (it holds the unit lower factor afterwards): no copy
+/// of a large `a`, the same operations and result.
+pub fn lstsq_in_place(a: MatMut<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
     let (m, n) = a.shape();
     assert!(m >= n && b.nrows() == m, "least squares of a tall matrix");
-    let mut qr = a.to_owned();
+    let mut qr = a;
     let (mut fwd, mut bwd) = (vec![0usize; n], vec![0usize; n]);
     let block = linalg::qr::no_pivoting::factor::recommended_block_size::<f64>(m, n);
     let mut coeff = Mat::zeros(block, n.min(m));
     let scratch =
         linalg::qr::col_pivoting::factor::qr_in_place_scratch::<usize, f64>(m, n, block, SEQ, Default::default());
     linalg::qr::col_pivoting::factor::qr_in_place(
-        qr.as_mut(),
+        qr.rb_mut(),
         coeff.as_mut(),
         &mut fwd,
         &mut bwd,
@@ -203,14 +216,15 @@ pub fn lstsq(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
         MemStack::new(&mut MemBuffer::new(scratch)),
         Default::default(),
     );
-    let (basis, r) = split(qr);
+    let r = split_in_place(qr.rb_mut());
+    let basis = qr.rb();
     // SAFETY: faer's QR wrote a permutation and its inverse.
     let p = unsafe { Perm::new_unchecked(fwd.into_boxed_slice(), bwd.into_boxed_slice()) };
     let mut out = b.to_owned();
     let scratch =
         linalg::qr::col_pivoting::solve::solve_lstsq_in_place_scratch::<usize, f64>(m, n, block, b.ncols(), SEQ);
     linalg::qr::col_pivoting::solve::solve_lstsq_in_place_with_conj(
-        basis.as_ref(),
+        basis,
         coeff.as_ref(),
         r.as_ref(),
         p.as_ref(),

@@ -226,6 +226,51 @@ fn a_newer_format_is_refused_in_each_result_file() {
 }
 
 // ---------------------------------------------------------------------------------------------
+// A reader that stops early (`oesweep run JOB | head`).
+
+/// Runs `args` in `cwd` with standard output a pipe whose reading end was closed before the
+/// binary started: its every write fails with a broken pipe, with no race to time.
+fn with_stdout_closed(cwd: &Path, args: &[&str]) -> std::process::Output {
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .args(args)
+        .current_dir(cwd)
+        .env("RUST_BACKTRACE", "0")
+        .stdin(std::process::Stdio::null())
+        .stdout(writer)
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .expect("binary starts")
+}
+
+#[test]
+fn a_closed_stdout_ends_the_printing_not_the_command() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().canonicalize().unwrap();
+    let (read, closed) = (job_folder(&root.join("read")), job_folder(&root.join("closed")));
+    let run = ["run", "job.json", "--quiet", "--threads", "1"];
+    let normal = oesweep(&read, &strings(&run));
+    assert!(matches!(normal.code, Some(0 | 1)) && !normal.stdout.is_empty(), "{}", normal.stderr);
+
+    let o = with_stdout_closed(&closed, &[&run[..], &["--profile", "profile.json"]].concat());
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), normal.code, "{stderr}");
+    assert!(!stderr.contains("panicked") && !stderr.contains("error"), "{stderr}");
+    // The results, and the profile written after the printing, are all there.
+    assert_eq!(common::table_without_seconds(&closed.join("out")), common::table_without_seconds(&read.join("out")));
+    assert!(closed.join("out/selection.json").is_file() && closed.join("profile.json").is_file());
+
+    let out = closed.join("out");
+    for args in [&["plan", "job.json", "--shards", "2"][..], &["export", out.to_str().unwrap(), "--to", "matlab"]] {
+        let o = with_stdout_closed(&closed, args);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Properties.
 
 /// Numbers (and non-numbers) a user might type: the edges of every type and typos.

@@ -76,13 +76,16 @@ impl Manifest {
         // `data[i]`, `validation[i]`.
         let specs = vj.job.data.named("data").chain(vj.job.validation.iter().flat_map(|v| v.named("validation")));
         for (role, spec) in specs {
-            let bytes = std::fs::read(&spec.path).map_err(|e| Error::input(&spec.path, format!("cannot read: {e}")))?;
-            data.push(DataHash {
-                role: role.to_string(),
-                path: spec.path.clone(),
-                bytes: bytes.len() as u64,
-                sha256: sha256_hex(&bytes),
-            });
+            // A file named twice (estimation and validation rows of one record) is hashed once.
+            let (bytes, sha256) = match data.iter().find(|d: &&DataHash| d.path == spec.path) {
+                Some(d) => (d.bytes, d.sha256.clone()),
+                None => {
+                    let bytes =
+                        std::fs::read(&spec.path).map_err(|e| Error::input(&spec.path, format!("cannot read: {e}")))?;
+                    (bytes.len() as u64, sha256_hex(&bytes))
+                }
+            };
+            data.push(DataHash { role: role.to_string(), path: spec.path.clone(), bytes, sha256 });
         }
         Ok(Manifest {
             format: FORMAT,

@@ -2,8 +2,20 @@
 //! library's requests ([`crate::engine`], [`crate::slurm`]), and the printing of the outcomes
 //! (`print`). No estimation, file layout or rule lives here.
 
+/// `println!` for the commands' standard output, through [`stdout::write`].
+macro_rules! outln {
+    () => { $crate::cli::stdout::write(format_args!("\n")) };
+    ($($arg:tt)*) => { $crate::cli::stdout::write(format_args!("{}\n", format_args!($($arg)*))) };
+}
+
+/// `print!` for the commands' standard output, through [`stdout::write`].
+macro_rules! out {
+    ($($arg:tt)*) => { $crate::cli::stdout::write(format_args!($($arg)*)) };
+}
+
 mod args;
 mod print;
+mod stdout;
 
 pub use args::*;
 
@@ -59,8 +71,9 @@ where
             print(info);
         }
     }));
+    drop(stdout::take_error());
     let code = match run(cli) {
-        Ok(code) => code,
+        Ok(code) => stdout::settle(code),
         Err(e) => {
             // One line, whatever the paths contain: control characters are escaped.
             let msg: String = e
@@ -86,7 +99,7 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Run(a) => run_job(&a),
         Command::Report(a) => {
             let page = crate::report::write_report(&a.folder)?;
-            println!("wrote {}", page.display());
+            outln!("wrote {}", page.display());
             Ok(0)
         }
         Command::Merge(a) => run_merge(&a),
@@ -127,7 +140,7 @@ fn run_export(a: &args::ExportArgs) -> Result<u8> {
             })?;
             eprintln!("wrote {} ({})", out.display(), model.name);
         }
-        None => print!("{text}"),
+        None => out!("{text}"),
     }
     Ok(0)
 }
@@ -144,7 +157,7 @@ fn run_spectrum(a: &args::SpectrumArgs) -> Result<u8> {
     };
     let r = engine::spectrum(&req)?;
     if a.json {
-        println!("{}", serde_json::to_string(&r).expect("report serialises"));
+        outln!("{}", serde_json::to_string(&r).expect("report serialises"));
     } else {
         print::print_spectrum(&r);
     }
@@ -183,7 +196,7 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
         eprintln!("warning: {w}");
     }
     if a.json {
-        println!("{}", serde_json::to_string(&report).expect("report serialises"));
+        outln!("{}", serde_json::to_string(&report).expect("report serialises"));
     } else {
         print_fit_summary(&report);
     }
@@ -220,9 +233,9 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
         shard::check_count(n, &p.plan).map_err(|m| Error::Invalid(format!("--shards {n}: {m}")))?;
     }
     let j = &p.job;
-    println!("job        {} ({})", j.job.name, j.file.display());
+    outln!("job        {} ({})", j.job.name, j.file.display());
     let more = |n: usize| if n > 1 { format!(" and {} more experiments", n - 1) } else { String::new() };
-    println!(
+    outln!(
         "data       {}{} ({} samples, Ts = {} s)",
         j.job.data.first().path.display(),
         more(j.job.data.specs.len()),
@@ -230,7 +243,7 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
         j.ts()
     );
     if let (Some(v), Some(rec)) = (&j.job.validation, &p.inputs.val) {
-        println!(
+        outln!(
             "validation {}{} ({} samples, column '{}')",
             v.first().path.display(),
             more(v.specs.len()),
@@ -238,11 +251,11 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
             rec.y_name
         );
     }
-    println!("grid       {}", describe_grid(&p));
-    println!("cells      {} Huber cells + {} least-squares fits", j.n_cells(), j.n_pairs());
-    println!("start      {}", j.job.start.as_str());
-    println!("ranking    by {:?} fit", p.ranking());
-    println!("output     {}", j.output().display());
+    outln!("grid       {}", describe_grid(&p));
+    outln!("cells      {} Huber cells + {} least-squares fits", j.n_cells(), j.n_pairs());
+    outln!("start      {}", j.job.start.as_str());
+    outln!("ranking    by {:?} fit", p.ranking());
+    outln!("output     {}", j.output().display());
     for w in &p.inputs.warnings {
         eprintln!("warning: {w}");
     }
@@ -329,35 +342,35 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         }
         RunEnd::ShardSaved => {
             let label = &o.label;
-            println!(
+            outln!(
                 "{label}: {cells} cells ({failed} failed) + {pairs} least-squares fits, saved in {}",
                 o.checkpoint.display()
             );
             if o.resumed_rows > 0 {
-                println!("{} cells resumed from the checkpoint, {} computed in this run", o.resumed, o.computed);
+                outln!("{} cells resumed from the checkpoint, {} computed in this run", o.resumed, o.computed);
             }
-            println!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
+            outln!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
             let count = o.shard.map_or(1, |s| s.count);
-            println!("when all {count} shards are done: oesweep merge {}", o.out.display());
+            outln!("when all {count} shards are done: oesweep merge {}", o.out.display());
         }
         RunEnd::Merged { ref selection, .. } => {
-            println!("{}: {cells} cells ({failed} failed) + {pairs} least-squares fits", o.label);
+            outln!("{}: {cells} cells ({failed} failed) + {pairs} least-squares fits", o.label);
             if o.resumed_rows > 0 {
-                println!(
+                outln!(
                     "{} cells and {} least-squares fits resumed from the checkpoint, {} cells computed in this run",
                     o.resumed,
                     o.resumed_rows - o.resumed,
                     o.computed
                 );
             }
-            println!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
+            outln!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
             print_picks(selection);
             print_rules(selection);
             print_pick_bootstraps(selection);
             for w in selection.warnings.iter().filter(|w| !printed.borrow().contains(w)) {
                 eprintln!("warning: {w}");
             }
-            println!("results in {}", o.out.display());
+            outln!("results in {}", o.out.display());
             if let Some(e) = &o.cleanup {
                 eprintln!("warning: {e}");
             }
@@ -402,7 +415,7 @@ fn run_merge(a: &MergeArgs) -> Result<u8> {
         }
     }
     match &m.end {
-        MergeEnd::AlreadyMerged => println!("{}: already merged (no checkpoint left), nothing to do", out.display()),
+        MergeEnd::AlreadyMerged => outln!("{}: already merged (no checkpoint left), nothing to do", out.display()),
         MergeEnd::Incomplete => {
             eprintln!(
                 "nothing written; rerun the missing shards and merge again, or merge what there is with --partial"
@@ -416,8 +429,8 @@ fn run_merge(a: &MergeArgs) -> Result<u8> {
                 .iter()
                 .map(|(d, n)| format!("{} ({n} parts)", d.file_name().unwrap_or_default().to_string_lossy()))
                 .collect();
-            println!("merged {}", read.join(", "));
-            println!(
+            outln!("merged {}", read.join(", "));
+            outln!(
                 "{}: {} of {} cells ({} failed) + {} of {} least-squares fits",
                 m.name,
                 m.huber,
@@ -432,13 +445,13 @@ fn run_merge(a: &MergeArgs) -> Result<u8> {
             for w in &selection.warnings {
                 eprintln!("warning: {w}");
             }
-            println!("results in {}", out.display());
+            outln!("results in {}", out.display());
             if m.missing.is_empty() {
                 if let Some(e) = &m.cleanup {
                     eprintln!("warning: {e}");
                 }
             } else {
-                println!("partial merge: the checkpoint is kept; merge again once the missing cells are done");
+                outln!("partial merge: the checkpoint is kept; merge again once the missing cells are done");
             }
         }
     }
@@ -459,13 +472,13 @@ fn run_slurm(a: &SlurmArgs) -> Result<u8> {
     };
     if a.dry_run {
         let (sweep, merge) = crate::slurm::commands(&req)?;
-        println!("OESWEEP={} sbatch {}", sweep.exe.display(), sweep.args.join(" "));
-        println!("OESWEEP={} sbatch --dependency=afterok:<sweep job id> {}", merge.exe.display(), merge.args.join(" "));
+        outln!("OESWEEP={} sbatch {}", sweep.exe.display(), sweep.args.join(" "));
+        outln!("OESWEEP={} sbatch --dependency=afterok:<sweep job id> {}", merge.exe.display(), merge.args.join(" "));
         return Ok(0);
     }
     let s = crate::slurm::submit(&req)?;
-    println!("sweep job {} (array of {} shards)", s.sweep_id, a.shards);
-    println!("merge job {} (starts when every shard succeeded)", s.merge_id);
-    println!("results in {}, Slurm logs in {}", s.out.display(), s.logs.display());
+    outln!("sweep job {} (array of {} shards)", s.sweep_id, a.shards);
+    outln!("merge job {} (starts when every shard succeeded)", s.merge_id);
+    outln!("results in {}, Slurm logs in {}", s.out.display(), s.logs.display());
     Ok(0)
 }

@@ -13,61 +13,56 @@ pub(super) fn opt_pct(v: Option<f64>) -> String {
 pub(super) fn print_fit_summary(r: &FitReport) {
     let h = &r.huber;
     let l = &r.ls;
-    println!("OE(nB={}, nF={}) delay {} on {} ({} samples)", r.nb, r.nf, r.delay, r.data.display(), r.n);
+    outln!("OE(nB={}, nF={}) delay {} on {} ({} samples)", r.nb, r.nf, r.delay, r.data.display(), r.n);
     if let (Some(p), Some(c)) = (&r.validation, &r.validation_column) {
-        println!("validation: {} (column '{c}')", p.display());
+        outln!("validation: {} (column '{c}')", p.display());
     }
-    println!();
-    println!("{:<22}{:>18}{:>18}", "", "least squares", format!("Huber k={}", crate::text::k(h.k)));
-    println!("{:<22}{:>18.6e}{:>18.6e}", "criterion", l.criterion, h.criterion);
-    println!("{:<22}{:>18}{:>18.6e}", "gamma", "-", h.gamma);
-    println!("{:<22}{:>18.6e}{:>18}", "sigma", l.sigma, "");
-    println!("{:<22}{:>18}{:>18}", "L1C", "-", format!("{:.2} %", 100.0 * h.l1c));
-    println!(
-        "{:<22}{:>18}{:>18}",
-        "fit (estimation)",
-        opt_pct(Some(l.assessment.fit)),
-        opt_pct(Some(h.assessment.fit))
-    );
-    println!("{:<22}{:>18}{:>18}", "fit (validation)", opt_pct(l.assessment.fit_val), opt_pct(h.assessment.fit_val));
-    println!("{:<22}{:>18}{:>18}", "fit (band)", opt_pct(l.assessment.fit_band), opt_pct(h.assessment.fit_band));
-    println!("{:<22}{:>18}{:>18}", "iterations", l.iterations, h.iterations);
-    println!("{:<22}{:>18} {:>17}", "termination", l.termination.as_str(), h.termination.as_str());
-    println!("{:<22}{:>18.6}{:>18.6}", "max pole radius", l.assessment.max_pole_radius, h.assessment.max_pole_radius);
+    outln!();
+    outln!("{:<22}{:>18}{:>18}", "", "least squares", format!("Huber k={}", crate::text::k(h.k)));
+    outln!("{:<22}{:>18.6e}{:>18.6e}", "criterion", l.criterion, h.criterion);
+    outln!("{:<22}{:>18}{:>18.6e}", "gamma", "-", h.gamma);
+    outln!("{:<22}{:>18.6e}{:>18}", "sigma", l.sigma, "");
+    outln!("{:<22}{:>18}{:>18}", "L1C", "-", format!("{:.2} %", 100.0 * h.l1c));
+    outln!("{:<22}{:>18}{:>18}", "fit (estimation)", opt_pct(Some(l.assessment.fit)), opt_pct(Some(h.assessment.fit)));
+    outln!("{:<22}{:>18}{:>18}", "fit (validation)", opt_pct(l.assessment.fit_val), opt_pct(h.assessment.fit_val));
+    outln!("{:<22}{:>18}{:>18}", "fit (band)", opt_pct(l.assessment.fit_band), opt_pct(h.assessment.fit_band));
+    outln!("{:<22}{:>18}{:>18}", "iterations", l.iterations, h.iterations);
+    outln!("{:<22}{:>18} {:>17}", "termination", l.termination.as_str(), h.termination.as_str());
+    outln!("{:<22}{:>18.6}{:>18.6}", "max pole radius", l.assessment.max_pole_radius, h.assessment.max_pole_radius);
     let (le, he) = (&l.assessment.evidence, &h.assessment.evidence);
     // Not computed prints as NaN, as the table's null reads in numpy.
     let v = |x: Option<f64>| x.unwrap_or(f64::NAN);
-    println!("{:<22}{:>18.3e}{:>18.3e}", "max std/|value|", v(le.max_rel_std), v(he.max_rel_std));
-    println!("{:<22}{:>18.4}{:>18.4}", "residuals white p", v(le.resid_white_p), v(he.resid_white_p));
-    println!("{:<22}{:>18.4}{:>18.4}", "resid. indep. of u p", v(le.resid_indep_p), v(he.resid_indep_p));
-    println!();
+    outln!("{:<22}{:>18.3e}{:>18.3e}", "max std/|value|", v(le.max_rel_std), v(he.max_rel_std));
+    outln!("{:<22}{:>18.4}{:>18.4}", "residuals white p", v(le.resid_white_p), v(he.resid_white_p));
+    outln!("{:<22}{:>18.4}{:>18.4}", "resid. indep. of u p", v(le.resid_indep_p), v(he.resid_indep_p));
+    outln!();
     let with_std = |v: &[f64], s: &[f64]| {
         v.iter().zip(s).map(|(v, s)| format!("{v:.6e} +/- {s:.1e}")).collect::<Vec<_>>().join(", ")
     };
-    println!("Huber b = [{}]", with_std(&h.b, &he.b_std));
-    println!("Huber f = [{}]", with_std(&h.f, &he.f_std));
+    outln!("Huber b = [{}]", with_std(&h.b, &he.b_std));
+    outln!("Huber f = [{}]", with_std(&h.f, &he.f_std));
     match h.offset {
-        Some(c) => println!(
+        Some(c) => outln!(
             "offset = {c}{} ({}; input level u0 = {} taken out)",
             he.offset_std.map_or(String::new(), |s| format!(" +/- {s:.1e}")),
             r.offset_mode.as_str(),
             r.input_level
         ),
-        None => println!("offset: none (the paper's model)"),
+        None => outln!("offset: none (the paper's model)"),
     }
-    println!("initial state of the judged fits: {}", r.initial_state.as_str());
-    println!("Huber fit from start '{}'", r.start);
+    outln!("initial state of the judged fits: {}", r.initial_state.as_str());
+    outln!("Huber fit from start '{}'", r.start);
     if let Some(b) = &r.bootstrap {
         print_bootstrap(r, b);
     }
-    println!("({:.3} s)", r.seconds);
+    outln!("({:.3} s)", r.seconds);
 }
 
 /// The bootstrap's intervals beside the sandwich std (METHOD.md 17.3).
 fn print_bootstrap(r: &FitReport, b: &crate::estimate::bootstrap::Bootstrap) {
     let he = &r.huber.assessment.evidence;
     let stds: Vec<f64> = he.b_std.iter().chain(&he.f_std).copied().chain(he.offset_std).collect();
-    println!();
+    outln!();
     print_intervals(&r.parameters, &r.huber.theta(), &stds, b, r.ts);
 }
 
@@ -76,8 +71,8 @@ pub(super) fn print_pick_bootstraps(selection: &reduce::Selection) {
     for p in &selection.bootstrap {
         let rules = p.rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
         let k = p.k.map_or("least squares".to_string(), |k| format!("k = {}", crate::text::k(k)));
-        println!();
-        println!("OE({},{}) delay {} {k} (picked by {rules})", p.nb, p.nf, p.delay);
+        outln!();
+        outln!("OE({},{}) delay {} {k} (picked by {rules})", p.nb, p.nf, p.delay);
         let stds: Vec<f64> = p.sandwich_std.iter().map(|s| s.unwrap_or(f64::NAN)).collect();
         print_intervals(&p.parameters, &p.values, &stds, &p.intervals, Some(p.ts));
     }
@@ -93,11 +88,15 @@ fn print_intervals(
     ts: Option<f64>,
 ) {
     let pct = 100.0 * b.level;
-    println!(
+    outln!(
         "bootstrap: {} replicates ({} failed, {} on the stability boundary), residual blocks of {}, seed {}",
-        b.replicates, b.failed, b.boundary, b.block, b.seed
+        b.replicates,
+        b.failed,
+        b.boundary,
+        b.block,
+        b.seed
     );
-    println!(
+    outln!(
         "{:<10}{:>15}{:>12}{:>12}{:>29}",
         "parameter",
         "value",
@@ -107,13 +106,13 @@ fn print_intervals(
     );
     for (i, (name, iv)) in names.iter().zip(&b.parameters).enumerate() {
         let (v, s) = (values.get(i).copied().unwrap_or(f64::NAN), stds.get(i).copied().unwrap_or(f64::NAN));
-        println!("{name:<10}{v:>15.6e}{s:>12.2e}{:>12.2e}    [{:.6e}, {:.6e}]", iv.std, iv.lower, iv.upper);
+        outln!("{name:<10}{v:>15.6e}{s:>12.2e}{:>12.2e}    [{:.6e}, {:.6e}]", iv.std, iv.lower, iv.upper);
     }
     let hz =
         |w: f64| ts.map_or(format!("{:.4} rad/sample", w), |ts| format!("{:.4} Hz", w / (std::f64::consts::TAU * ts)));
-    println!("{:<22}{:>36}{:>36}", "frequency", "|G| interval", "phase interval (deg)");
+    outln!("{:<22}{:>36}{:>36}", "frequency", "|G| interval", "phase interval (deg)");
     for ((w, m), p) in b.frequencies.iter().zip(&b.magnitude).zip(&b.phase_deg) {
-        println!(
+        outln!(
             "{:<22}{:>36}{:>36}",
             hz(*w),
             format!("[{:.5e}, {:.5e}]", m.lower, m.upper),
@@ -143,12 +142,12 @@ pub(super) fn describe_grid(p: &Prepared) -> String {
 pub(super) fn print_layout(plan: &Plan, n: usize) {
     let layout = shard::layout(plan, n);
     let total: f64 = (0..plan.pairs.len()).map(|p| shard::pair_cost(plan, p)).sum();
-    println!("shards     {n} (run each with `oesweep run JOB --shard I/{n}`, then `oesweep merge OUTPUT`)");
-    println!("{:>7} {:>6} {:>7} {:>11} {:>7}  order pairs (nB,nF)", "shard", "pairs", "cells", "est. cost", "share");
+    outln!("shards     {n} (run each with `oesweep run JOB --shard I/{n}`, then `oesweep merge OUTPUT`)");
+    outln!("{:>7} {:>6} {:>7} {:>11} {:>7}  order pairs (nB,nF)", "shard", "pairs", "cells", "est. cost", "share");
     for (i, pairs) in layout.iter().enumerate() {
         let cost: f64 = pairs.iter().map(|&p| shard::pair_cost(plan, p)).sum();
         let list: Vec<String> = pairs.iter().map(|&p| format!("({},{})", plan.pairs[p].nb, plan.pairs[p].nf)).collect();
-        println!(
+        outln!(
             "{:>7} {:>6} {:>7} {:>11} {:>6.1}%  {}",
             format!("{i}/{n}"),
             pairs.len(),
@@ -163,7 +162,7 @@ pub(super) fn print_layout(plan: &Plan, n: usize) {
 pub(super) fn print_picks(selection: &reduce::Selection) {
     for (label, pick) in [("M1 (W minima)  ", &selection.m1), ("M2 (L1C minima)", &selection.m2)] {
         match pick {
-            Some(m) => println!(
+            Some(m) => outln!(
                 "{label} OE({}, {}) k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  fit = {}",
                 m.model.key.nb,
                 m.model.key.nf,
@@ -173,12 +172,12 @@ pub(super) fn print_picks(selection: &reduce::Selection) {
                 100.0 * m.model.l1c(),
                 opt_pct(Some(m.model.score))
             ),
-            None => println!("{label} none (no usable cell)"),
+            None => outln!("{label} none (no usable cell)"),
         }
     }
     let rule = selection.rule;
     match selection.picks.get(&rule).and_then(|p| p.model.as_ref()) {
-        Some(m) => println!(
+        Some(m) => outln!(
             "pick ({}) OE({}, {}) delay {}{}  {} = {}",
             rule.as_str(),
             m.key.nb,
@@ -188,7 +187,7 @@ pub(super) fn print_picks(selection: &reduce::Selection) {
             selection.basis.column(),
             opt_pct(Some(m.score).filter(|v| v.is_finite()))
         ),
-        None => println!("pick ({}) none", rule.as_str()),
+        None => outln!("pick ({}) none", rule.as_str()),
     }
 }
 
@@ -198,17 +197,17 @@ pub(super) fn print_rules(selection: &reduce::Selection) {
         return;
     }
     let basis = selection.basis.column();
-    println!("{:<12}{:<22}{:>8}{:>24}{:>12}{:>10}{:>8}", "rule", "model", "k", "value", basis, "indep p", "cancel");
+    outln!("{:<12}{:<22}{:>8}{:>24}{:>12}{:>10}{:>8}", "rule", "model", "k", "value", basis, "indep p", "cancel");
     for (rule, pick) in &selection.picks {
         let lead = if *rule == selection.rule { "*" } else { " " };
         let Some(m) = &pick.model else {
-            println!("{lead}{:<11}none: {}", rule.as_str(), pick.why);
+            outln!("{lead}{:<11}none: {}", rule.as_str(), pick.why);
             continue;
         };
         let k = m.row.k.map_or("-".to_string(), crate::text::k);
         let value = pick.value.map_or("-".to_string(), |v| format!("{} {v:.6}", pick.measure));
         let score = Some(m.score).filter(|v| v.is_finite());
-        println!(
+        outln!(
             "{lead}{:<11}{:<22}{:>8}{:>24}{:>12}{:>10}{:>8}",
             rule.as_str(),
             format!("OE({},{}) delay {}", m.key.nb, m.key.nf, m.key.delay),
@@ -220,20 +219,20 @@ pub(super) fn print_rules(selection: &reduce::Selection) {
         );
     }
     let why = if selection.rule_why.is_empty() { selection.rule.as_str() } else { selection.rule_why.as_str() };
-    println!("(* the rule the summary leads with, {why}; every rule's reason is in selection.json's picks)");
+    outln!("(* the rule the summary leads with, {why}; every rule's reason is in selection.json's picks)");
 }
 
 /// The page of a report, or its error after the summary was printed.
 pub(super) fn print_report(report: Option<Result<PathBuf>>) -> Result<()> {
     if let Some(page) = report {
-        println!("report in {}", page?.display());
+        outln!("report in {}", page?.display());
     }
     Ok(())
 }
 
 /// `oesweep spectrum`'s table: per usable bin, |G| in dB with its band, phase, coherence.
 pub(super) fn print_spectrum(r: &crate::engine::SpectrumReport) {
-    println!(
+    outln!(
         "{} ({} samples): {} estimate, {} segments of {}{}",
         r.data.display(),
         r.n,
@@ -242,13 +241,18 @@ pub(super) fn print_spectrum(r: &crate::engine::SpectrumReport) {
         r.segment,
         if r.replaced > 0 { format!(", {} output samples cleaned", r.replaced) } else { String::new() }
     );
-    println!(
+    outln!(
         "{:>14} {:>12} {:>12} {:>12} {:>10} {:>10}",
-        "freq_hz", "|G| dB", "lower dB", "upper dB", "phase deg", "coherence"
+        "freq_hz",
+        "|G| dB",
+        "lower dB",
+        "upper dB",
+        "phase deg",
+        "coherence"
     );
     let db = |v: f64| if v > 0.0 { 20.0 * v.log10() } else { f64::NEG_INFINITY };
     for k in 0..r.freq_hz.len() {
-        println!(
+        outln!(
             "{:>14.6} {:>12.3} {:>12.3} {:>12.3} {:>10.2} {:>10.4}",
             r.freq_hz[k],
             db(r.re[k].hypot(r.im[k])),

@@ -13,9 +13,10 @@ use crate::estimate::{self, Judge, Problem, Workspace};
 use crate::job::{Inputs, ValidJob};
 use crate::reduce::doubts::{Beyond, GridBounds};
 use crate::table::{CellRow, FitKind};
+use rayon::prelude::*;
 
 /// The models one step beyond the grid's nB and nF edges that `pick` sits on, fitted warm from
-/// it, with their RBIC (none when the pick is inside, or a fit fails).
+/// it, with their RBIC (none when the pick is inside, or a fit fails), in the order nB, nF.
 pub fn beyond_edges(
     pick: &CellRow,
     rows: &[CellRow],
@@ -40,10 +41,12 @@ pub fn beyond_edges(
     let judge = Judge { initial_state: job.job.initial_state, ..Judge::default() };
     let offset = inputs.levels.mode.estimated();
     let theta = |r: &CellRow| estimate::theta_of(&r.fit.b, &r.fit.f, inputs.levels.estimated_c(r.fit.offset));
-    let mut ws = Workspace::new();
+    // The larger models side by side on the current rayon pool, each with its own workspace
+    // (a fit does not depend on what a workspace held before).
     larger
-        .into_iter()
+        .into_par_iter()
         .filter_map(|(b, f)| {
+            let mut ws = Workspace::new();
             let prob =
                 Problem { u: &inputs.est.u, y: &inputs.est.y, nb: b, nf: f, delay, offset, seams: &inputs.est.seams };
             if inputs.est.u.len() < crate::data::min_samples(b, f, delay) {

@@ -1,7 +1,7 @@
 //! `oesweep export`: one model of a finished run, by rule or by cell, with its covariance, in
 //! the forms of [`crate::export::model`].
 
-use super::covariance_of;
+use super::uncertainty::covariance_of;
 use crate::error::{Error, Result};
 use crate::export::model::ModelOut;
 use crate::reduce::Rule;

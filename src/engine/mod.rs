@@ -18,14 +18,14 @@
 use crate::checkpoint::{self, Manifest, Writer};
 
 use crate::error::{Error, Result};
-use crate::estimate;
 use crate::export;
 use crate::job::{self, Inputs, ValidJob};
 use crate::plan::Plan;
 use crate::profile::{Phase, Profile, ProfileReport, Span};
 use crate::progress::Progress;
-use crate::reduce::{self, ReduceOptions, Selection};
+use crate::reduce::{self, Selection};
 use crate::shard::{self, Missing, Shard};
+use write::write_results;
 
 use crate::spectral::{self, SpectralEstimate};
 use crate::sweep::{self, Context};
@@ -40,6 +40,7 @@ mod beyond;
 mod export_model;
 mod single;
 mod uncertainty;
+mod write;
 
 pub use export_model::{PickSpec, export_model};
 pub use single::{
@@ -279,7 +280,13 @@ fn run_loaded(
     opts.check()?;
     let profile = opts.profile.then(|| Arc::new(Profile::default()));
     let reading = Span::start(profile.as_deref(), Phase::Read);
-    let p = prepare_job(load()?)?;
+    let job = load()?;
+    // The checkpoint's manifest hashes the data files: beside their reading, not after it.
+    let (p, manifest) = std::thread::scope(|s| {
+        let manifest = s.spawn(|| Manifest::of_job(&job));
+        (prepare_job(job.clone()), manifest.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)))
+    });
+    let p = p?;
     drop(reading);
     let setup = Instant::now();
     if let Some(prof) = &profile {
@@ -297,7 +304,7 @@ fn run_loaded(
         None => (p.plan.clone(), p.job.job.name.clone()),
     };
     let parts = checkpoint::folder(&out, opts.shard);
-    let manifest = Manifest::of_job(&p.job)?;
+    let manifest = manifest?;
 
     // Locked before the checkpoint is read: another run of this folder could be changing it.
     std::fs::create_dir_all(&out).map_err(|e| Error::output(&out, format!("cannot create output folder: {e}")))?;
@@ -409,78 +416,6 @@ fn run_loaded(
     let report = opts.report.then(|| crate::report::write_report(&out));
     result.end = RunEnd::Merged { selection: Box::new(selection), report };
     Ok(result)
-}
-
-/// The result files of a complete (or `--partial`) table: `cells.parquet`, `selection.json`,
-/// `job.json`, replacing any report of an earlier table. Returns the picks. `inputs` are the
-/// job's records as the run read them (None: a merge that could not read the data files): they
-/// give the levels and warnings selection.json keeps, the picks' covariance the report draws and
-/// the bootstrap the job's `uncertainty` may ask for (on `threads` workers, 0: all cores).
-fn write_results(
-    out: &Path,
-    job: &ValidJob,
-    rows: &[CellRow],
-    inputs: Option<&Inputs>,
-    threads: usize,
-) -> Result<Selection> {
-    let sel_opts = ReduceOptions {
-        basis: reduce::choose_basis(job.job.validation.is_some(), job.job.band_hz.is_some()),
-        settings: job.job.selection,
-    };
-    let mut selection = reduce::select(rows, &sel_opts);
-    selection.offset = Some(job.job.offset);
-    selection.input_level = inputs.map(|i| i.levels.u0);
-    selection.initial_state = Some(job.job.initial_state);
-    selection.warnings = inputs.map(|i| i.warnings.clone()).unwrap_or_default();
-    let bounds = |v: &[usize]| (v[0] as u32, v[v.len() - 1] as u32);
-    let grid = reduce::doubts::GridBounds { nb: bounds(&job.nb), nf: bounds(&job.nf), delay: bounds(&job.delays) };
-    let rbic_pick = selection.picks.get(&reduce::Rule::Rbic).and_then(|p| p.model.as_ref());
-    let beyond = match (rbic_pick, inputs) {
-        (Some(pick), Some(inputs)) => beyond::beyond_edges(pick, rows, &grid, inputs, job),
-        _ => Vec::new(),
-    };
-    selection.warnings.extend(reduce::doubts::pick_warnings(&selection, rows, &grid, &beyond));
-    let uncertainty = &job.job.uncertainty;
-    if let Some(inputs) = inputs.filter(|_| !uncertainty.is_local()) {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| Error::Invalid(format!("cannot start {threads} threads for the bootstrap: {e}")))?;
-        selection.bootstrap =
-            pool.install(|| uncertainty::bootstrap_picks(&selection, inputs, uncertainty, &job.job.solver, job.ts()));
-    }
-    if inputs.is_none() && !uncertainty.is_local() {
-        selection.warnings.push(
-            "the job asks for the bootstrap of the picks, but their data files could not be read again: no \
-             bootstrap intervals"
-                .into(),
-        );
-    }
-    let bootstrapped = !selection.bootstrap.is_empty();
-    selection
-        .warnings
-        .extend(inputs.map(|i| uncertainty::pick_doubts(&selection, i, bootstrapped)).unwrap_or_default());
-    if let Some(inputs) = inputs {
-        for pick in [selection.m1.as_mut(), selection.m2.as_mut()].into_iter().flatten() {
-            pick.covariance = covariance_of(&pick.model, inputs);
-        }
-    }
-    // A report of the previous table would describe models this table may not have.
-    crate::report::remove_report(out);
-    export::parquet::write_cells(&out.join(export::CELLS_FILE), rows)?;
-    export::json::write_json(&out.join(export::SELECTION_FILE), &export::json::Versioned::new(&selection))?;
-    job.write_as_run(&out.join(export::JOB_FILE))?;
-    Ok(selection)
-}
-
-/// The covariance of a row's parameters `[b, f(, c)]` on the estimation record (None when its
-/// Gram matrix is singular): the model as the run fitted it, levels taken out and the offset a
-/// parameter when the job estimated it; robust for a Huber row (METHOD.md 10).
-fn covariance_of(c: &CellRow, inputs: &Inputs) -> Option<Vec<f64>> {
-    let prob = uncertainty::problem(c, inputs);
-    let theta = estimate::theta_of(&c.fit.b, &c.fit.f, inputs.levels.estimated_c(c.fit.offset));
-    let yhat = prob.simulate_vec(&theta);
-    estimate::evidence::covariance(&prob, &theta, uncertainty::loss(c), &yhat)
 }
 
 /// How [`merge`] ended.

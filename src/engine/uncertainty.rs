@@ -5,12 +5,12 @@
 //! (`reduce::doubts` says it of a pick on the stability boundary); and, when the job asks
 //! (`"uncertainty": "bootstrap"`), the bootstrap of their whole estimation (METHOD.md 17.3).
 
-use super::covariance_of;
 use crate::estimate::least_squares::BOUNDARY;
 use crate::estimate::{self, Problem};
 use crate::job::{Inputs, Uncertainty};
 use crate::reduce::{PickBootstrap, Rule, Selection};
 use crate::table::CellRow;
+use rayon::prelude::*;
 use std::collections::BTreeMap;
 
 /// What the warnings advise instead of the local standard deviations.
@@ -35,9 +35,65 @@ fn watched_models(sel: &Selection) -> Vec<(Vec<Rule>, &CellRow)> {
     models.into_values().collect()
 }
 
+/// What the picks' uncertainty needs of each model it looks at (the watched models, M1 and
+/// M2), computed once per model: its covariance (for the quadratic check, the pick's
+/// `covariance` and the bootstrap's sandwich std alike) and, for a watched model inside the
+/// stability boundary, the check of METHOD.md 17.2.
+pub struct PickModels {
+    models: BTreeMap<Cell, (Option<Vec<f64>>, Option<estimate::quadratic::QuadraticCheck>)>,
+}
+
+impl PickModels {
+    /// The models of `sel` on the job's estimation record, side by side on the current rayon
+    /// pool (each model's numbers do not depend on it).
+    pub fn of(sel: &Selection, inputs: &Inputs) -> PickModels {
+        let mut rows: BTreeMap<Cell, (&CellRow, bool)> = BTreeMap::new();
+        for (_, row) in watched_models(sel) {
+            rows.insert(cell(row), (row, true));
+        }
+        for pick in [sel.m1.as_ref(), sel.m2.as_ref()].into_iter().flatten() {
+            rows.entry(cell(&pick.model)).or_insert((&pick.model.row, false));
+        }
+        let rows: Vec<(Cell, &CellRow, bool)> = rows.into_iter().map(|(c, (row, watched))| (c, row, watched)).collect();
+        let models = rows
+            .into_par_iter()
+            .map(|(c, row, watched)| {
+                let cov = covariance_of(row, inputs);
+                let inside = row.fit.max_pole_radius.unwrap_or(0.0) < BOUNDARY;
+                let check = cov.as_ref().filter(|_| watched && inside).map(|cov| {
+                    let prob = problem(row, inputs);
+                    let theta = estimate::theta_of(&row.fit.b, &row.fit.f, inputs.levels.estimated_c(row.fit.offset));
+                    estimate::quadratic::check(&prob, &theta, loss(row), cov)
+                });
+                (c, (cov, check))
+            })
+            .collect();
+        PickModels { models }
+    }
+
+    /// The covariance of a model of [`PickModels::of`]'s selection (computed if it was not).
+    pub fn covariance(&self, row: &CellRow, inputs: &Inputs) -> Option<Vec<f64>> {
+        match self.models.get(&cell(row)) {
+            Some((cov, _)) => cov.clone(),
+            None => covariance_of(row, inputs),
+        }
+    }
+
+    fn check(&self, row: &CellRow, inputs: &Inputs) -> Option<estimate::quadratic::QuadraticCheck> {
+        match self.models.get(&cell(row)) {
+            Some((_, check)) => check.clone(),
+            None => quadratic_check(row, inputs),
+        }
+    }
+}
+
+fn cell(row: &CellRow) -> Cell {
+    (row.key.delay, row.key.nb, row.key.nf, row.key.k_index)
+}
+
 /// The warnings, one per watched model; `bootstrapped`: the job's bootstrap ran (the remedy
 /// then points to its intervals).
-pub fn pick_doubts(sel: &Selection, inputs: &Inputs, bootstrapped: bool) -> Vec<String> {
+pub fn pick_doubts(sel: &Selection, models: &PickModels, inputs: &Inputs, bootstrapped: bool) -> Vec<String> {
     watched_models(sel)
         .into_iter()
         .filter_map(|(rules, row)| {
@@ -49,7 +105,7 @@ pub fn pick_doubts(sel: &Selection, inputs: &Inputs, bootstrapped: bool) -> Vec<
             if radius >= BOUNDARY {
                 return None;
             }
-            let check = quadratic_check(row, inputs);
+            let check = models.check(row, inputs);
             estimate::quadratic::doubt(&model, radius, check.as_ref(), if bootstrapped { REMEDY_DONE } else { REMEDY })
         })
         .collect()
@@ -59,6 +115,7 @@ pub fn pick_doubts(sel: &Selection, inputs: &Inputs, bootstrapped: bool) -> Vec<
 /// (METHOD.md 17.3), replicates in parallel on the current rayon pool.
 pub fn bootstrap_picks(
     sel: &Selection,
+    models: &PickModels,
     inputs: &Inputs,
     settings: &Uncertainty,
     solver: &estimate::SolverOptions,
@@ -72,7 +129,7 @@ pub fn bootstrap_picks(
             let prob = problem(row, inputs);
             let c = inputs.levels.estimated_c(row.fit.offset);
             let theta = estimate::theta_of(&row.fit.b, &row.fit.f, c);
-            let sandwich = covariance_of(row, inputs);
+            let sandwich = models.covariance(row, inputs);
             let dim = theta.len();
             let sandwich_std =
                 (0..dim).map(|i| sandwich.as_ref().map(|cov| cov[i * dim + i].max(0.0).sqrt())).collect();
@@ -116,4 +173,14 @@ pub(super) fn problem<'a>(row: &CellRow, inputs: &'a Inputs) -> Problem<'a> {
 /// The loss the row was fitted with.
 pub(super) fn loss(row: &CellRow) -> estimate::Loss {
     row.fit.gamma.map_or(estimate::Loss::LeastSquares, |gamma| estimate::Loss::Huber { gamma })
+}
+
+/// The covariance of a row's parameters `[b, f(, c)]` on the estimation record (None when its
+/// Gram matrix is singular): the model as the run fitted it, levels taken out and the offset a
+/// parameter when the job estimated it; robust for a Huber row (METHOD.md 10).
+pub(super) fn covariance_of(c: &CellRow, inputs: &Inputs) -> Option<Vec<f64>> {
+    let prob = problem(c, inputs);
+    let theta = estimate::theta_of(&c.fit.b, &c.fit.f, inputs.levels.estimated_c(c.fit.offset));
+    let yhat = prob.simulate_vec(&theta);
+    estimate::evidence::covariance(&prob, &theta, loss(c), &yhat)
 }

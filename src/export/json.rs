@@ -10,8 +10,14 @@ use std::path::Path;
 /// Write a serde value as pretty JSON (with a trailing newline) atomically: temporary file in the
 /// same folder, fsync, rename. Fails with [`crate::Error::Output`] naming `path`.
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
-    super::write_atomically(path, |file| {
-        let mut w = BufWriter::new(file);
+    stage_json(path, value)?.commit()
+}
+
+/// [`write_json`] up to the rename ([`super::stage`]).
+pub(crate) fn stage_json<T: Serialize>(path: &Path, value: &T) -> Result<super::Staged> {
+    super::stage(path, |file| {
+        // selection.json runs to megabytes (every pick's candidates): written in large blocks.
+        let mut w = BufWriter::with_capacity(1 << 20, file);
         serde_json::to_writer_pretty(&mut w, value).map_err(|e| format!("cannot write JSON: {e}"))?;
         w.write_all(b"\n").and_then(|_| w.flush()).map_err(|e| format!("cannot write JSON: {e}"))
     })

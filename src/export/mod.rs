@@ -64,25 +64,50 @@ pub(crate) fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut File) -> std::result::Result<(), String>,
 ) -> Result<()> {
-    let tmp = temporary_path(path)?;
+    stage(path, write)?.commit()
+}
+
+/// The first half of [`write_atomically`]: the temporary file written and fsynced, not yet in
+/// place. Several files are staged side by side and committed in a fixed order.
+pub(crate) fn stage(path: &Path, write: impl FnOnce(&mut File) -> std::result::Result<(), String>) -> Result<Staged> {
+    let staged = Staged { tmp: temporary_path(path)?, path: path.to_path_buf(), committed: false };
+    let tmp = &staged.tmp;
     let result = (|| {
-        let mut file = File::create(&tmp).map_err(|e| format!("cannot create {}: {e}", tmp.display()))?;
+        let mut file = File::create(tmp).map_err(|e| format!("cannot create {}: {e}", tmp.display()))?;
         write(&mut file)?;
         // Without the fsync a crash after the rename could leave an empty or partial file under
         // the final name on some file systems.
-        file.sync_all().map_err(|e| format!("cannot flush {}: {e}", tmp.display()))?;
-        drop(file);
-        std::fs::rename(&tmp, path).map_err(|e| format!("cannot rename {} into place: {e}", tmp.display()))
+        file.sync_all().map_err(|e| format!("cannot flush {}: {e}", tmp.display()))
     })();
-    match result {
-        Ok(()) => {
-            sync_parent(path);
-            Ok(())
-        }
-        Err(msg) => {
+    // On failure `staged` is dropped, which removes the temporary file.
+    result.map(|()| staged).map_err(|msg| Error::output(path, msg))
+}
+
+/// A file written by [`stage`]: [`Staged::commit`] renames it into place; dropped uncommitted,
+/// it is removed and its path left untouched.
+#[must_use = "a staged file is removed unless committed"]
+pub(crate) struct Staged {
+    tmp: PathBuf,
+    path: PathBuf,
+    committed: bool,
+}
+
+impl Staged {
+    /// Renames the file over its path (durably, see [`sync_parent`]).
+    pub(crate) fn commit(mut self) -> Result<()> {
+        std::fs::rename(&self.tmp, &self.path)
+            .map_err(|e| Error::output(&self.path, format!("cannot rename {} into place: {e}", self.tmp.display())))?;
+        self.committed = true;
+        sync_parent(&self.path);
+        Ok(())
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        if !self.committed {
             // Best effort: the file may not exist if creating it failed.
-            let _ = std::fs::remove_file(&tmp);
-            Err(Error::output(path, msg))
+            let _ = std::fs::remove_file(&self.tmp);
         }
     }
 }
@@ -120,6 +145,24 @@ mod tests {
         assert!(err.to_string().contains("a.txt") && err.to_string().contains("boom"), "{err}");
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn export_staged_files_appear_only_when_committed() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.txt"), dir.path().join("b.txt"));
+        std::fs::write(&b, "old").unwrap();
+        let write = |text: &'static str| {
+            move |f: &mut File| std::io::Write::write_all(f, text.as_bytes()).map_err(|e| e.to_string())
+        };
+        let (staged_a, staged_b) = (stage(&a, write("new a")).unwrap(), stage(&b, write("new b")).unwrap());
+        assert!(!a.exists() && std::fs::read_to_string(&b).unwrap() == "old", "nothing in place before the commit");
+        staged_a.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "new a");
+        // Dropped uncommitted (a later piece failed): the old file stays, no temporary is left.
+        drop(staged_b);
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "old");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
     }
 
     #[test]

@@ -22,8 +22,13 @@ use std::path::Path;
 
 /// Write rows to `path` atomically: write `<path>.tmp-<pid>` in the same folder, fsync, rename.
 pub fn write_cells(path: &Path, rows: &[CellRow]) -> Result<()> {
+    stage_cells(path, rows)?.commit()
+}
+
+/// [`write_cells`] up to the rename ([`super::stage`]).
+pub(crate) fn stage_cells(path: &Path, rows: &[CellRow]) -> Result<super::Staged> {
     let mut df = to_frame(rows).map_err(|e| Error::output(path, format!("cannot build the table: {e}")))?;
-    super::write_atomically(path, |file| {
+    super::stage(path, |file| {
         let mut w = BufWriter::new(file);
         let version = vec![(super::FORMAT_KEY.to_string(), super::FORMAT_VERSION.to_string())];
         ParquetWriter::new(&mut w)

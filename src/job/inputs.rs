@@ -45,9 +45,23 @@ pub fn read_inputs(
         }
         Ok(Record::concat(records))
     };
-    let est = concat(data)?;
-    let val = validation.map(concat).transpose()?;
-    inputs_of_records(est, val, offset, (nb_max, nf_max, delay_max), delay)
+    let concat = &concat;
+    // The validation record is read beside the estimation record and its integrating-plant
+    // test: on a long record these are most of a run's serial start. The errors keep their
+    // order (the estimation record's reading, the validation's, then the checks).
+    let (est, val, integrating) = std::thread::scope(|s| {
+        let val = validation.map(|v| s.spawn(move || concat(v)));
+        let est = concat(data);
+        let integrating = est
+            .as_ref()
+            .ok()
+            .filter(|e| data::check_for_model(e, nb_max, nf_max, delay_max).is_ok())
+            .map(|e| integrating_warning(e, delay));
+        let val = val.map(|h| h.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)));
+        (est, val, integrating)
+    });
+    let (est, val) = (est?, val.transpose()?);
+    inputs_with(est, val, offset, (nb_max, nf_max, delay_max), |_| integrating.flatten())
 }
 
 /// The records of `data` or `validation` as read, one per experiment.
@@ -58,11 +72,23 @@ fn read_experiments(specs: &Records) -> Result<Vec<Record>> {
 /// [`read_inputs`] of records already in memory: checked against the largest model, levels
 /// taken out, the data's warnings (the integrating-plant test with input delay `delay`).
 pub fn inputs_of_records(
+    est: Record,
+    val: Option<Record>,
+    offset: Offset,
+    largest: (usize, usize, usize),
+    delay: usize,
+) -> Result<Inputs> {
+    inputs_with(est, val, offset, largest, |est| integrating_warning(est, delay))
+}
+
+/// [`inputs_of_records`] with the integrating-plant warning of the estimation record as
+/// `integrating` gives it (called once the records passed their checks).
+fn inputs_with(
     mut est: Record,
     mut val: Option<Record>,
     offset: Offset,
     (nb_max, nf_max, delay_max): (usize, usize, usize),
-    delay: usize,
+    integrating: impl FnOnce(&Record) -> Option<String>,
 ) -> Result<Inputs> {
     data::check_for_model(&est, nb_max, nf_max, delay_max)?;
     if let Some(rec) = &val {
@@ -70,7 +96,7 @@ pub fn inputs_of_records(
     }
     let levels = Levels::of(offset, &est);
     let mut warnings: Vec<String> = data::levels::offset_warning(offset, &est).into_iter().collect();
-    warnings.extend(integrating_warning(&est, delay));
+    warnings.extend(integrating(&est));
     levels.apply(&mut est);
     if let Some(v) = val.as_mut() {
         levels.apply(v);

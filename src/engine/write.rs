@@ -1,0 +1,102 @@
+//! The result files of a complete (or `--partial`) table: the picks and what is known of their
+//! uncertainty ([`crate::reduce`], [`super::beyond`], [`super::uncertainty`]), then
+//! `cells.parquet`, `selection.json` and `job.json`.
+//!
+//! The pieces that do not depend on each other run side by side on the run's threads: the
+//! table's Parquet file beside the picks' work, and within that the look beyond the grid's
+//! edge beside the covariances of the picked models (each computed once). Each piece computes
+//! what it computed alone, so the files do not depend on the threads. The files are written
+//! under temporary names and put in place in a fixed order, as one after the other would be.
+
+use super::{beyond, uncertainty};
+use crate::error::{Error, Result};
+use crate::export;
+use crate::job::{Inputs, ValidJob};
+use crate::reduce::{self, ReduceOptions, Selection};
+use crate::table::CellRow;
+use std::path::Path;
+
+/// Writes the result files of `rows`, replacing any report of an earlier table. Returns the
+/// picks. `inputs` are the job's records as the run read them (None: a merge that could not
+/// read the data files): they give the levels and warnings selection.json keeps, the picks'
+/// covariance the report draws and the bootstrap the job's `uncertainty` may ask for (on
+/// `threads` workers, 0: all cores).
+pub(super) fn write_results(
+    out: &Path,
+    job: &ValidJob,
+    rows: &[CellRow],
+    inputs: Option<&Inputs>,
+    threads: usize,
+) -> Result<Selection> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| Error::Invalid(format!("cannot start {threads} threads to write the results: {e}")))?;
+    let (cells, picked) = pool.install(|| {
+        rayon::join(
+            || export::parquet::stage_cells(&out.join(export::CELLS_FILE), rows),
+            || {
+                let selection = picks(job, rows, inputs);
+                let path = out.join(export::SELECTION_FILE);
+                let staged = export::json::stage_json(&path, &export::json::Versioned::new(&selection));
+                (selection, staged)
+            },
+        )
+    });
+    // The errors in the order of the files written one after the other.
+    let (selection, staged_selection) = picked;
+    let (cells, staged_selection) = (cells?, staged_selection?);
+    // A report of the previous table would describe models this table may not have.
+    crate::report::remove_report(out);
+    cells.commit()?;
+    staged_selection.commit()?;
+    job.write_as_run(&out.join(export::JOB_FILE))?;
+    Ok(selection)
+}
+
+/// The picks of `rows` with their warnings, the covariances of M1 and M2 and the bootstrap
+/// the job asks for, on the current rayon pool.
+fn picks(job: &ValidJob, rows: &[CellRow], inputs: Option<&Inputs>) -> Selection {
+    let sel_opts = ReduceOptions {
+        basis: reduce::choose_basis(job.job.validation.is_some(), job.job.band_hz.is_some()),
+        settings: job.job.selection,
+    };
+    let mut selection = reduce::select(rows, &sel_opts);
+    selection.offset = Some(job.job.offset);
+    selection.input_level = inputs.map(|i| i.levels.u0);
+    selection.initial_state = Some(job.job.initial_state);
+    selection.warnings = inputs.map(|i| i.warnings.clone()).unwrap_or_default();
+    let bounds = |v: &[usize]| (v[0] as u32, v[v.len() - 1] as u32);
+    let grid = reduce::doubts::GridBounds { nb: bounds(&job.nb), nf: bounds(&job.nf), delay: bounds(&job.delays) };
+    let rbic_pick = selection.picks.get(&reduce::Rule::Rbic).and_then(|p| p.model.as_ref());
+    let (beyond, models) = rayon::join(
+        || match (rbic_pick, inputs) {
+            (Some(pick), Some(inputs)) => beyond::beyond_edges(pick, rows, &grid, inputs, job),
+            _ => Vec::new(),
+        },
+        || inputs.map(|i| uncertainty::PickModels::of(&selection, i)),
+    );
+    selection.warnings.extend(reduce::doubts::pick_warnings(&selection, rows, &grid, &beyond));
+    let uncertainty = &job.job.uncertainty;
+    if let (Some(inputs), Some(models)) = (inputs, &models)
+        && !uncertainty.is_local()
+    {
+        selection.bootstrap =
+            uncertainty::bootstrap_picks(&selection, models, inputs, uncertainty, &job.job.solver, job.ts());
+    }
+    if inputs.is_none() && !uncertainty.is_local() {
+        selection.warnings.push(
+            "the job asks for the bootstrap of the picks, but their data files could not be read again: no \
+             bootstrap intervals"
+                .into(),
+        );
+    }
+    let bootstrapped = !selection.bootstrap.is_empty();
+    if let (Some(inputs), Some(models)) = (inputs, &models) {
+        selection.warnings.extend(uncertainty::pick_doubts(&selection, models, inputs, bootstrapped));
+        for pick in [selection.m1.as_mut(), selection.m2.as_mut()].into_iter().flatten() {
+            pick.covariance = models.covariance(&pick.model, inputs);
+        }
+    }
+    selection
+}
