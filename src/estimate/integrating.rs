@@ -164,19 +164,22 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
         if !x.iter().all(|s| s.is_finite()) {
             return None;
         }
-        // sum_t w_t z_t [phi_t | y_t]^T of the filtered rows.
-        let mut m = Mat::<f64>::zeros(dd, dd + 1);
+        // sum_t w_t z_t [phi_t | y_t]^T of the filtered rows, row-major (row i at i * (dd + 1)):
+        // a plain slice per row, which the compiler vectorises across the columns (each
+        // entry's sum over t in the same order as before).
+        let mut m = vec![0.0; dd * (dd + 1)];
         filtered_rows(prob, &x, &filter, lags, |t, phi, z| {
             let w = huber_weight(eps[t], scale);
-            for i in 0..dd {
+            for (i, row) in m.chunks_exact_mut(dd + 1).enumerate() {
                 let zi = w * if i < d { z[i] } else { phi[i] };
-                for c in 0..=dd {
-                    m[(i, c)] += zi * phi[c];
+                for (mc, pc) in row.iter_mut().zip(&phi[..=dd]) {
+                    *mc += zi * pc;
                 }
             }
         });
-        let lhs = Mat::from_fn(dd, dd, |i, c| m[(i, c)]);
-        let sol = crate::dense::Lu::new(lhs.as_ref()).solve(Mat::from_fn(dd, 1, |i, _| m[(i, dd)]).as_ref());
+        let at = |i: usize, c: usize| m[i * (dd + 1) + c];
+        let lhs = Mat::from_fn(dd, dd, at);
+        let sol = crate::dense::Lu::new(lhs.as_ref()).solve(Mat::from_fn(dd, 1, |i, _| at(i, dd)).as_ref());
         theta = (0..dd).map(|i| sol[(i, 0)]).collect();
         if !theta.iter().all(|s| s.is_finite()) {
             return None;
