@@ -1,12 +1,13 @@
-//! The nested check (METHOD.md 5.6) runs in two places: a whole run checks each pair as a task
-//! of the sweep's graph, after its sub-models' checks; a merge of shards (whose plans each lack
+//! The nested check (METHOD.md 5.6) runs in two places: a whole run checks each cell as a task
+//! of the sweep's graph, after its sub-models' checks at the same k; a merge of shards (whose plans each lack
 //! sub-models) checks the rows in waves of nB + nF. On the demo job, where the check refits
 //! cells, both give the same table bit for bit (every column but `seconds`), and so does a
 //! whole run that resumes a shard's rows on another thread count: the checkpoint holds the
 //! walks' rows, and the check of a cell reads only its row and its sub-models' final rows.
 
-use oesweep::export::parquet::read_cells;
-use oesweep::table::CellRow;
+mod common;
+
+use common::table_without_seconds as table;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -33,14 +34,6 @@ fn demo(dir: &Path, out: &str) -> PathBuf {
     let p = dir.join(format!("{out}.json"));
     std::fs::write(&p, job.to_string()).unwrap();
     p
-}
-
-fn table(out: &Path) -> Vec<CellRow> {
-    let mut rows = read_cells(&out.join("cells.parquet")).unwrap();
-    for r in &mut rows {
-        r.fit.seconds = 0.0;
-    }
-    rows
 }
 
 #[test]

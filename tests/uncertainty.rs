@@ -156,11 +156,8 @@ fn oe1212() -> (Vec<f64>, Vec<f64>) {
     (std::iter::once(1.0).chain(bz).map(|v| v * fs / bs).collect(), f)
 }
 
-/// Realisation 14 of `uncertainty_mc 30 5000 0.0875 1 0.05` (issue 37): the Huber fit from the
-/// least-squares phase's starts stops on the stability boundary (pole radius 0.99996), while
-/// the initial guess reaches an interior minimum with a lower W. `fit_one` returns that one.
-#[test]
-fn a_boundary_fit_is_not_returned_when_a_lower_interior_fit_is_within_reach() {
+/// The record of realisation 14 of `uncertainty_mc 30 5000 0.0875 1 0.05` (issue 37).
+fn realisation_14() -> oesweep::simulate::SimRecord {
     use oesweep::simulate::{self, NoiseKind, Outliers, SimOptions, SystemSpec};
     let (b, f) = oe1212();
     let opts = SimOptions {
@@ -172,7 +169,15 @@ fn a_boundary_fit_is_not_returned_when_a_lower_interior_fit_is_within_reach() {
         noise: NoiseKind::Gaussian,
         outliers: Some(Outliers { probability: 0.05, min: 5.0, max: 15.0 }),
     };
-    let rec = simulate::generate(&SystemSpec { b, f, delay: 1 }, &opts).unwrap();
+    simulate::generate(&SystemSpec { b, f, delay: 1 }, &opts).unwrap()
+}
+
+/// Realisation 14 of `uncertainty_mc 30 5000 0.0875 1 0.05` (issue 37): the Huber fit from the
+/// least-squares phase's starts stops on the stability boundary (pole radius 0.99996), while
+/// the initial guess reaches an interior minimum with a lower W. `fit_one` returns that one.
+#[test]
+fn a_boundary_fit_is_not_returned_when_a_lower_interior_fit_is_within_reach() {
+    let rec = realisation_14();
     let prob = Problem { u: &rec.u, y: &rec.y, nb: 12, nf: 12, delay: 1, offset: false, seams: &[] };
     let (judge, solver, k) = (Judge::default(), SolverOptions::default(), 0.0875);
     let mut ws = Workspace::new();
@@ -193,18 +198,7 @@ fn a_boundary_fit_is_not_returned_when_a_lower_interior_fit_is_within_reach() {
 #[test]
 fn the_sweeps_walk_leaves_no_boundary_cell_above_an_interior_fit_within_reach() {
     use oesweep::estimate::chains::{CellOutcome, walk_pair};
-    use oesweep::simulate::{self, NoiseKind, Outliers, SimOptions, SystemSpec};
-    let (b, f) = oe1212();
-    let opts = SimOptions {
-        n: 5000,
-        bits: 10,
-        amplitude: 1.0,
-        seed: 1014,
-        noise_std: 1.0,
-        noise: NoiseKind::Gaussian,
-        outliers: Some(Outliers { probability: 0.05, min: 5.0, max: 15.0 }),
-    };
-    let rec = simulate::generate(&SystemSpec { b, f, delay: 1 }, &opts).unwrap();
+    let rec = realisation_14();
     let prob = Problem { u: &rec.u, y: &rec.y, nb: 12, nf: 12, delay: 1, offset: false, seams: &[] };
     let (judge, solver) = (Judge::default(), SolverOptions::default());
     let mut ws = Workspace::new();
