@@ -6,7 +6,7 @@
 
 use super::fit::{HuberFit, Judge, LsFit, StartKind, huber_from_solution};
 use super::huber::Loss;
-use super::least_squares::{BOUNDARY, exploration_head};
+use super::least_squares::exploration_head;
 use super::options::{SolverOptions, Termination};
 use super::problem::{Problem, Solution};
 use super::solver;
@@ -300,74 +300,8 @@ impl ChainWalk {
                 self.walk_down(pair, ks, n - 1, ws, &mut seconds);
             }
         }
-        self.probe_boundary(pair, ks, ws, &mut seconds);
+        super::boundary::probe(&mut self.cells, pair.prob, pair.sigma, pair.judge, pair.opts, ks, ws, &mut seconds);
         seconds
-    }
-
-    /// The boundary probe (METHOD.md 5.5, issue 37): when the walk left a cell on the stability
-    /// boundary (largest pole radius >= [`BOUNDARY`]), the first such cell (smallest k) is also
-    /// fitted cold from the further starts `oesweep fit` uses there
-    /// ([`super::single::boundary_starts`]: the cell pulled inside, the ARX and IV guesses).
-    /// When the lowest interior one of those fits replaces the cell by the rule of `fit`
-    /// ([`super::single::replaces`]: lower, or as low and inside), the probe's point is walked
-    /// up and down in k, warm fit by warm fit, replacing each cell it beats by that rule, until
-    /// a cell it does not beat. On the boundary a pole at radius ~1 gives 1/F an almost
-    /// infinite memory, the fit creeps and stops, and every chain may have led there; a cell
-    /// left there above an interior minimum has a criterion too high and a covariance that
-    /// means nothing. One probe per pair (three cold fits), not per cell: the walk carries a
-    /// winning probe along k.
-    fn probe_boundary(&mut self, pair: &PairProblem, ks: &[f64], ws: &mut Workspace, seconds: &mut [f64]) {
-        let PairProblem { prob, sigma, judge, opts } = *pair;
-        let edge = |theta: &[f64]| crate::oe::max_pole_radius(prob.split(theta).1) >= BOUNDARY;
-        let Some(i) = self.cells.iter().position(|c| c.as_ref().is_some_and(|(fit, _)| edge(&fit.theta()))) else {
-            return;
-        };
-        let Some((cell, _)) = &self.cells[i] else { return };
-        let incumbent = (cell.criterion, true);
-        let t = std::time::Instant::now();
-        let loss = Loss::Huber { gamma: ks[i] * sigma };
-        ws.role = Role::Probe;
-        let mut best: Option<Solution> = None;
-        for (start, _) in super::single::boundary_starts(prob, &cell.theta()) {
-            let sol = solver::minimise(prob, loss, &start, &opts.huber(), ws);
-            if sol.usable() && !edge(&sol.theta) && best.as_ref().is_none_or(|b| sol.criterion < b.criterion) {
-                best = Some(sol);
-            }
-        }
-        seconds[i] += t.elapsed().as_secs_f64();
-        let Some(sol) = best.filter(|s| super::single::replaces((s.criterion, false), incumbent)) else { return };
-        // The workspace holds the last start's simulation, not necessarily the winner's.
-        let fit = huber_from_solution(prob, sigma, ks[i], &sol, judge, ws, true);
-        self.cells[i] = Some((fit, StartKind::Probe));
-        for range in [(i + 1..ks.len()).collect::<Vec<_>>(), (0..i).rev().collect()] {
-            let mut from = i;
-            for j in range {
-                let t = std::time::Instant::now();
-                let replaced = self.probe_step(pair, ks, from, j, ws);
-                seconds[j] += t.elapsed().as_secs_f64();
-                if !replaced {
-                    break;
-                }
-                from = j;
-            }
-        }
-    }
-
-    /// One warm fit of the probe's walk: cell `j` from cell `from`'s point, kept when it
-    /// replaces the cell ([`super::single::replaces`]).
-    fn probe_step(&mut self, pair: &PairProblem, ks: &[f64], from: usize, j: usize, ws: &mut Workspace) -> bool {
-        let PairProblem { prob, sigma, judge, opts } = *pair;
-        let edge = |theta: &[f64]| crate::oe::max_pole_radius(prob.split(theta).1) >= BOUNDARY;
-        let (Some((start, _)), Some((cell, _))) = (&self.cells[from], &self.cells[j]) else { return false };
-        let incumbent = (cell.criterion, edge(&cell.theta()));
-        ws.role = Role::Probe;
-        let sol = solver::minimise(prob, Loss::Huber { gamma: ks[j] * sigma }, &start.theta(), &opts.huber_warm(), ws);
-        if !(sol.usable() && super::single::replaces((sol.criterion, edge(&sol.theta)), incumbent)) {
-            return false;
-        }
-        let fit = huber_from_solution(prob, sigma, ks[j], &sol, judge, ws, false);
-        self.cells[j] = Some((fit, StartKind::Probe));
-        true
     }
 
     /// Warm fits down from cell `i`, each from the one above, as long as each is lower than

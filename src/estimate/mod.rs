@@ -35,6 +35,7 @@
 //! ```
 
 pub mod bootstrap;
+pub mod boundary;
 pub mod cancellation;
 pub mod chains;
 pub mod criteria;

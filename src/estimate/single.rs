@@ -14,7 +14,6 @@
 
 use super::chains::fit_huber_multi;
 use super::fit::{HuberFit, Judge, LsFit, fit_huber};
-use super::initial_guess::initial_guesses;
 use super::least_squares::{BOUNDARY, contracted, fit_ls};
 use super::options::SolverOptions;
 use super::problem::Problem;
@@ -65,7 +64,7 @@ pub fn off_the_boundary(
     let OneFit { ls, huber, start, fits } = fit;
     let k = huber.k;
     let mut candidates = vec![(huber, start)];
-    for (theta, name) in boundary_starts(prob, &candidates[0].0.theta()) {
+    for (theta, name) in super::boundary::boundary_starts(prob, &candidates[0].0.theta()) {
         let fit = fit_huber(prob, ls.sigma, k, &theta, judge, opts, ws);
         candidates.push((fit, name));
     }
@@ -90,30 +89,6 @@ pub fn off_the_boundary(
 /// True when the fit's largest pole radius is on the stability boundary ([`BOUNDARY`]).
 pub fn on_boundary(h: &HuberFit) -> bool {
     oe::max_pole_radius(&h.f) >= BOUNDARY
-}
-
-/// The further starts of a boundary fit `theta`: itself with its poles pulled to
-/// [`super::least_squares::CONTRACTED`], and the initial guesses (ARX, IV). The sweep's
-/// boundary probe ([`super::chains::ChainWalk`]) starts from the same points.
-pub(crate) fn boundary_starts(prob: &Problem, theta: &[f64]) -> Vec<(Vec<f64>, &'static str)> {
-    let mut starts = vec![(contracted(prob, theta), "contracted")];
-    starts.extend(initial_guesses(prob).into_iter().map(|g| (g, "guess")));
-    starts
-}
-
-/// The rule of [`choose`] for two fits, given as (criterion, on the boundary): `new` replaces
-/// `old` when it is lower by more than [`super::Chains::MERGE`] relative, or when `old` is on
-/// the boundary, `new` inside, and `new` no higher than `old` plus that tolerance.
-pub(crate) fn replaces(new: (f64, bool), old: (f64, bool)) -> bool {
-    let ((w, edge), (w_old, old_edge)) = (new, old);
-    if !w.is_finite() {
-        return false;
-    }
-    if !w_old.is_finite() {
-        return true;
-    }
-    let tol = super::Chains::MERGE * w_old.abs();
-    w < w_old - tol || (old_edge && !edge && w <= w_old + tol)
 }
 
 /// The fit to return among `fits`: the lowest usable criterion (ties: the earlier), except that
