@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::table_without_seconds as table;
+use common::{demo_job, table_without_seconds as table};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -23,13 +23,7 @@ fn ok(o: Output) -> Output {
 
 /// The demo job with its records by absolute path and its results in `dir/out`.
 fn demo(dir: &Path, out: &str) -> PathBuf {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let mut job: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(root.join("jobs/piezo-demo.json")).unwrap()).unwrap();
-    for key in ["data", "validation"] {
-        let path = root.join("jobs").join(job[key]["path"].as_str().unwrap());
-        job[key]["path"] = serde_json::json!(path);
-    }
+    let mut job = demo_job();
     job["output"] = serde_json::json!(dir.join(out));
     let p = dir.join(format!("{out}.json"));
     std::fs::write(&p, job.to_string()).unwrap();

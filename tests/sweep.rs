@@ -152,13 +152,7 @@ fn a_larger_model_never_fits_worse_in_least_squares() {
 #[test]
 fn a_larger_model_is_never_left_above_its_sub_model_at_the_same_k() {
     let dir = tempfile::tempdir().unwrap();
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let mut job: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(root.join("jobs/piezo-demo.json")).unwrap()).unwrap();
-    for key in ["data", "validation"] {
-        let path = root.join("jobs").join(job[key]["path"].as_str().unwrap());
-        job[key]["path"] = serde_json::json!(path);
-    }
+    let mut job = common::demo_job();
     job["output"] = serde_json::json!("demo");
     let p = dir.path().join("demo.json");
     std::fs::write(&p, job.to_string()).unwrap();

@@ -8,11 +8,10 @@
 //! ([`super::single::off_the_boundary`]); the sweep's walk of a pair tries them once per pair
 //! ([`probe`]) and carries a winner along k. Both keep a fit by one rule, [`replaces`].
 
-use super::fit::{HuberFit, Judge, StartKind, huber_from_solution};
+use super::fit::{HuberFit, PairProblem, StartKind, huber_from_solution};
 use super::huber::Loss;
 use super::initial_guess::initial_guesses;
 use super::least_squares::{BOUNDARY, contracted};
-use super::options::SolverOptions;
 use super::problem::{Problem, Solution};
 use super::solver;
 use super::workspace::Workspace;
@@ -24,6 +23,11 @@ pub(crate) fn boundary_starts(prob: &Problem, theta: &[f64]) -> Vec<(Vec<f64>, &
     let mut starts = vec![(contracted(prob, theta), "contracted")];
     starts.extend(initial_guesses(prob).into_iter().map(|g| (g, "guess")));
     starts
+}
+
+/// True when `theta`'s largest pole radius is on the stability boundary ([`BOUNDARY`]).
+pub(crate) fn on_edge(prob: &Problem, theta: &[f64]) -> bool {
+    crate::oe::max_pole_radius(prob.split(theta).1) >= BOUNDARY
 }
 
 /// The rule of [`super::single::choose`] for two fits, given as (criterion, on the boundary):
@@ -48,18 +52,15 @@ pub(crate) fn replaces(new: (f64, bool), old: (f64, bool)) -> bool {
 /// each cell it beats by the same rule until a cell it does not beat (start `probe`). One probe
 /// per pair (three cold fits), not per cell: the walk carries a winning probe along k. Adds the
 /// time spent to each cell's `seconds`.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn probe(
     cells: &mut [Option<(HuberFit, StartKind)>],
-    prob: &Problem,
-    sigma: f64,
-    judge: &Judge,
-    opts: &SolverOptions,
+    pair: &PairProblem,
     ks: &[f64],
     ws: &mut Workspace,
     seconds: &mut [f64],
 ) {
-    let edge = |theta: &[f64]| crate::oe::max_pole_radius(prob.split(theta).1) >= BOUNDARY;
+    let PairProblem { prob, sigma, judge, opts } = *pair;
+    let edge = |theta: &[f64]| on_edge(prob, theta);
     let Some(i) = cells.iter().position(|c| c.as_ref().is_some_and(|(fit, _)| edge(&fit.theta()))) else {
         return;
     };
@@ -84,7 +85,7 @@ pub(crate) fn probe(
         let mut from = i;
         for j in range {
             let t = std::time::Instant::now();
-            let replaced = probe_step(cells, prob, sigma, judge, opts, ks, from, j, ws);
+            let replaced = probe_step(cells, pair, ks, from, j, ws);
             seconds[j] += t.elapsed().as_secs_f64();
             if !replaced {
                 break;
@@ -96,19 +97,16 @@ pub(crate) fn probe(
 
 /// One warm fit of the probe's walk: cell `j` from cell `from`'s point, kept when it replaces
 /// the cell ([`replaces`]).
-#[allow(clippy::too_many_arguments)]
 fn probe_step(
     cells: &mut [Option<(HuberFit, StartKind)>],
-    prob: &Problem,
-    sigma: f64,
-    judge: &Judge,
-    opts: &SolverOptions,
+    pair: &PairProblem,
     ks: &[f64],
     from: usize,
     j: usize,
     ws: &mut Workspace,
 ) -> bool {
-    let edge = |theta: &[f64]| crate::oe::max_pole_radius(prob.split(theta).1) >= BOUNDARY;
+    let PairProblem { prob, sigma, judge, opts } = *pair;
+    let edge = |theta: &[f64]| on_edge(prob, theta);
     let (Some((start, _)), Some((cell, _))) = (&cells[from], &cells[j]) else { return false };
     let incumbent = (cell.criterion, edge(&cell.theta()));
     ws.role = Role::Probe;

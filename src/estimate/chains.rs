@@ -4,6 +4,7 @@
 //! won and where it started ([`StartKind`]). The sweep only schedules pairs and turns the
 //! outcomes into rows.
 
+pub use super::fit::PairProblem;
 use super::fit::{HuberFit, Judge, LsFit, StartKind, huber_from_solution};
 use super::huber::Loss;
 use super::least_squares::exploration_head;
@@ -14,16 +15,6 @@ use super::workspace::Workspace;
 use crate::profile::Role;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::Instant;
-
-/// What every Huber fit of one order pair shares: the problem, the least-squares scale sigma
-/// (gamma = k sigma), what the fits are judged against, and the solver settings.
-#[derive(Clone, Copy)]
-pub struct PairProblem<'a> {
-    pub prob: &'a Problem<'a>,
-    pub sigma: f64,
-    pub judge: &'a Judge<'a>,
-    pub opts: &'a SolverOptions,
-}
 
 /// Continuation chains along k for one order pair (METHOD.md 5.5).
 ///
@@ -300,7 +291,7 @@ impl ChainWalk {
                 self.walk_down(pair, ks, n - 1, ws, &mut seconds);
             }
         }
-        super::boundary::probe(&mut self.cells, pair.prob, pair.sigma, pair.judge, pair.opts, ks, ws, &mut seconds);
+        super::boundary::probe(&mut self.cells, pair, ks, ws, &mut seconds);
         seconds
     }
 

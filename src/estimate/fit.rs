@@ -104,6 +104,16 @@ impl StartKind {
     }
 }
 
+/// What every Huber fit of one order pair shares: the problem, the least-squares scale sigma
+/// (gamma = k sigma), what the fits are judged against, and the solver settings.
+#[derive(Clone, Copy)]
+pub struct PairProblem<'a> {
+    pub prob: &'a Problem<'a>,
+    pub sigma: f64,
+    pub judge: &'a Judge<'a>,
+    pub opts: &'a SolverOptions,
+}
+
 /// Quantities every fitted model reports.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Assessment {

@@ -57,8 +57,10 @@ pub mod single;
 pub mod solver;
 pub mod workspace;
 
-pub use chains::{ChainWalk, Chains, PairProblem, fit_huber_multi, fit_huber_starts};
-pub use fit::{Assessment, HuberFit, Judge, LsFit, StartKind, embed, fit_huber, fit_ls_from, fit_percent, theta_of};
+pub use chains::{ChainWalk, Chains, fit_huber_multi, fit_huber_starts};
+pub use fit::{
+    Assessment, HuberFit, Judge, LsFit, PairProblem, StartKind, embed, fit_huber, fit_ls_from, fit_percent, theta_of,
+};
 pub use huber::Loss;
 pub use initial_state::InitialState;
 pub use least_squares::{OwnMinima, exploration_head, finish_ls, fit_ls, fit_ls_nested, own_minima};

@@ -58,9 +58,9 @@ pub(super) fn check_cell<'r>(
             .into_iter()
             .flatten()
             .filter_map(sub)
-            // A row read back from a checkpoint a user may have edited: its parameters must be its
-            // orders' before they are embedded.
-            .filter(|s| s.ok() && s.fit.b.len() == s.key.nb as usize && s.fit.f.len() == s.key.nf as usize)
+            // Rows read back from a checkpoint fit their orders: the reader refuses others
+            // (`CellRow::shape_error`).
+            .filter(|s| s.ok())
             .filter_map(|s| s.fit.criterion.filter(|v| *v < w * (1.0 - LOWER)).map(|v| (v, s)))
             // The lower of the two (ties: the smaller nB, listed first).
             .fold(None, |best: Option<(f64, &CellRow)>, (v, s)| match best {

@@ -128,6 +128,18 @@ pub fn piezo_job(
     p
 }
 
+/// `jobs/piezo-demo.json` with its records by absolute path (set `output` before writing it).
+pub fn demo_job() -> serde_json::Value {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut job: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("jobs/piezo-demo.json")).unwrap()).unwrap();
+    for key in ["data", "validation"] {
+        let path = root.join("jobs").join(job[key]["path"].as_str().unwrap());
+        job[key]["path"] = serde_json::json!(path);
+    }
+    job
+}
+
 /// The table of a results folder without the wall-clock column.
 pub fn table_without_seconds(out: &std::path::Path) -> Vec<oesweep::table::CellRow> {
     let mut rows = oesweep::export::parquet::read_cells(&out.join("cells.parquet")).unwrap();
