@@ -21,6 +21,10 @@
 # us (issue 39: 75-100x extrapolated against 35x measured on the whole grid): never quote it as
 # the ratio.
 #
+# The peer runs with the BLAS a user's numpy has: OPENBLAS_CORETYPE and OPENBLAS_L2_SIZE (which
+# some machines set for old OpenBLAS builds, and which make a current numpy run a slower kernel)
+# are unset for the peer's command alone, and the kernel it runs is printed (threadpoolctl).
+#
 # Run on an otherwise idle machine (nothing compiling). Environment: CARGO_TARGET_DIR (default
 # $HOME/.cache/oesweep-target), PEER (default ../shared/peer/peer.py), RUNS (default 3), KEEP (a
 # folder that keeps the peer's grids, our table and profiles; default a temporary one).
@@ -32,9 +36,24 @@ peer=${PEER:-$root/../shared/peer/peer.py}
 runs=${RUNS:-3}
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 
-if ! python3 -c 'import numpy, scipy, polars' 2>/dev/null; then
-    python3 -m pip install --quiet numpy scipy polars
+if ! python3 -c 'import numpy, scipy, polars, threadpoolctl' 2>/dev/null; then
+    python3 -m pip install --quiet numpy scipy polars threadpoolctl
 fi
+# The peer's environment: ours, less the variables that pin an old OpenBLAS kernel.
+peer_env=(env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE)
+for v in OPENBLAS_CORETYPE OPENBLAS_L2_SIZE; do
+    if [[ -n ${!v:-} ]]; then echo "== $v=${!v} is set here: unset for the peer's command"; fi
+done
+"${peer_env[@]}" python3 - <<'PY'
+import numpy, scipy, threadpoolctl
+numpy.ones((64, 64)) @ numpy.ones((64, 64))  # load the BLAS
+blas = [i for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"]
+for i in blas:
+    print(f"== the peer's BLAS: {i['internal_api']} {i['version']}, kernel {i.get('architecture')}, "
+          f"{i['num_threads']} thread(s) (numpy {numpy.__version__}, scipy {scipy.__version__})")
+if not blas:
+    print("== the peer's BLAS: none found by threadpoolctl")
+PY
 (cd "$root" && cargo build --release --quiet --bin oesweep)
 bin=$CARGO_TARGET_DIR/release/oesweep
 if [[ -n ${KEEP:-} ]]; then
@@ -71,7 +90,7 @@ if [[ -z ${SAMPLE:-} ]]; then
     for i in $(seq "$runs"); do
         ours "$i"
         s=$(date +%s.%N)
-        python3 "$peer" --est "$est" --val "$val" --grid nb=7..14 nf=4..15 "k=$ks" --jobs 2 \
+        "${peer_env[@]}" python3 "$peer" --est "$est" --val "$val" --grid nb=7..14 nf=4..15 "k=$ks" --jobs 2 \
             --out "$work/peer_$i.jsonl" >/dev/null 2>&1
         e=$(date +%s.%N)
         echo "$s $e" >"$work/peer_time_$i"
@@ -99,7 +118,7 @@ else
     ks=$(python3 -c "print(','.join(repr(0.05 * (2 / 0.05) ** (i / 39)) for i in range(2, 40, 5)))")
     for i in $(seq "$runs"); do
         ours "$i"
-        python3 "$peer" --est "$est" --val "$val" --grid nb=8,10,13 nf=6,10,14 "k=$ks" --jobs 1 \
+        "${peer_env[@]}" python3 "$peer" --est "$est" --val "$val" --grid nb=8,10,13 nf=6,10,14 "k=$ks" --jobs 1 \
             --out "$work/peer_$i.jsonl" >/dev/null
     done
     # Stratified: nB's strata 7-8, 9-11, 12-14 by 8, 10, 13 and nF's 4-7, 8-11, 12-15 by 6, 10,
