@@ -1,7 +1,9 @@
 //! The warnings that say when the answer is doubtful (METHOD.md 7.2), on cases made for them:
 //! a true order outside the grid (the pick on the grid's edge, "widen the grid"), an integrating
-//! plant (a low-order fit's pole that may be 1, and picks on the stability boundary); none on a
-//! plant the grid contains, and from one record the lead rule `rbic` without a "widen" warning.
+//! plant (a low-order fit's pole that may be 1, and picks on the stability boundary), a stable
+//! plant whose output drifts (the drift of the stable picks' residuals, no integrating plant);
+//! none on a plant the grid contains, and from one record the lead rule `rbic` without a
+//! "widen" warning.
 
 mod common;
 
@@ -116,4 +118,29 @@ fn an_integrating_plant_is_named_by_its_low_order_fit_and_its_poles() {
     assert!(warnings.iter().any(|w| w.contains("has a pole at") && w.contains("integrating")), "{warnings:?}");
     assert!(warnings.iter().any(|w| w.contains("stability boundary")), "{warnings:?}");
     assert!(stderr.contains("integrating"), "{stderr}");
+}
+
+/// The heat exchanger (`common::drifting_exchanger`): the low-order IV fit finds a
+/// pole that may be 1, every pick is stable; the run names the drift of the picks' residuals,
+/// not an integrating plant.
+#[test]
+fn a_stable_plant_whose_output_drifts_is_warned_of_as_a_drift() {
+    let (u, y) = drifting_exchanger(27);
+    let dir = tempfile::tempdir().unwrap();
+    let (stderr, warnings) = run(dir.path(), &u, &y, 2);
+    let integrating = |w: &&String| w.contains("integrating (or unstable)") || w.contains("stability boundary");
+    assert!(!warnings.iter().any(|w| integrating(&w)), "{warnings:?}");
+    let drift: Vec<&String> = warnings.iter().filter(|w| w.starts_with("the residuals of OE(")).collect();
+    assert_eq!(drift.len(), 1, "{warnings:?}");
+    assert!(
+        drift[0].contains("(picked by ") && drift[0].contains("rbic") && drift[0].contains(" drift (above 0.463"),
+        "{}",
+        drift[0]
+    );
+    assert!(
+        drift[0].contains("a slow disturbance") && drift[0].contains("data.csv has a pole at 0.99"),
+        "{}",
+        drift[0]
+    );
+    assert!(stderr.contains("warning: the residuals of OE("), "{stderr}");
 }

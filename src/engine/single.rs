@@ -193,7 +193,7 @@ fn fit_records(
     val: Option<data::Record>,
     val_path: Option<PathBuf>,
 ) -> Result<FitReport> {
-    let job::Inputs { est, val, levels, warnings } =
+    let job::Inputs { est, val, levels, warnings, pole_test } =
         job::inputs_of_records(est, val, req.offset, (req.nb, req.nf, req.delay), req.delay)?;
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
@@ -231,6 +231,14 @@ fn fit_records(
     let quadratic = cov.as_ref().map(|c| estimate::quadratic::check(&prob, &theta, loss, c));
     let mut warnings = warnings;
     let model = format!("OE({},{}) delay {}", req.nb, req.nf, req.delay);
+    // The integrating-plant test judged against this fit (METHOD.md 7.3).
+    if let Some(test) = pole_test.filter(|t| t.integrating) {
+        use estimate::integrating::{self, Judged};
+        let radius = huber.assessment.max_pole_radius;
+        let drift = integrating::judged_by_residuals(radius).then(|| integrating::residual_drift(&prob, &theta));
+        let judged = Judged { name: model.clone(), radius, drift };
+        warnings.extend(integrating::doubt(&test, &est.path.display().to_string(), &[judged]));
+    }
     warnings.extend(estimate::quadratic::doubt(
         &model,
         huber.assessment.max_pole_radius,

@@ -2,8 +2,10 @@
 //! `reduce::doubts` watches): the doubt about their standard deviations (METHOD.md 17.2), a
 //! warning when a pick's criterion is far from quadratic over its confidence region
 //! ([`estimate::quadratic`]), where the sandwich covariance does not describe the uncertainty
-//! (`reduce::doubts` says it of a pick on the stability boundary); and, when the job asks
-//! (`"uncertainty": "bootstrap"`), the bootstrap of their whole estimation (METHOD.md 17.3).
+//! (`reduce::doubts` says it of a pick on the stability boundary); the record's
+//! integrating-plant test judged against them ([`integrating_doubt`], METHOD.md 7.3); and, when
+//! the job asks (`"uncertainty": "bootstrap"`), the bootstrap of their whole estimation
+//! (METHOD.md 17.3).
 
 use crate::estimate::least_squares::BOUNDARY;
 use crate::estimate::{self, Problem};
@@ -109,6 +111,28 @@ pub fn pick_doubts(sel: &Selection, models: &PickModels, inputs: &Inputs, bootst
             estimate::quadratic::doubt(&model, radius, check.as_ref(), if bootstrapped { REMEDY_DONE } else { REMEDY })
         })
         .collect()
+}
+
+/// The integrating-plant test of the estimation record judged against the watched picks
+/// (METHOD.md 7.3): its warning, or the drift of the picks' residuals, or nothing when the
+/// stable picks explain the record. Their residuals are looked at only when the test fired.
+pub fn integrating_doubt(sel: &Selection, inputs: &Inputs) -> Option<String> {
+    use estimate::integrating::{self, Judged};
+    let test = inputs.pole_test.as_ref().filter(|t| t.integrating)?;
+    let judged: Vec<Judged> = watched_models(sel)
+        .into_iter()
+        .map(|(rules, row)| {
+            let names = rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
+            let name = format!("OE({},{}) delay {} (picked by {names})", row.key.nb, row.key.nf, row.key.delay);
+            let radius = row.fit.max_pole_radius.unwrap_or(0.0);
+            let drift = integrating::judged_by_residuals(radius).then(|| {
+                let theta = estimate::theta_of(&row.fit.b, &row.fit.f, inputs.levels.estimated_c(row.fit.offset));
+                integrating::residual_drift(&problem(row, inputs), &theta)
+            });
+            Judged { name, radius, drift }
+        })
+        .collect();
+    integrating::doubt(test, &inputs.est.path.display().to_string(), &judged)
 }
 
 /// The bootstrap of every watched model's whole estimation on the job's estimation record

@@ -66,6 +66,7 @@ fn picks(job: &ValidJob, rows: &[CellRow], inputs: Option<&Inputs>) -> Selection
     selection.input_level = inputs.map(|i| i.levels.u0);
     selection.initial_state = Some(job.job.initial_state);
     selection.warnings = inputs.map(|i| i.warnings.clone()).unwrap_or_default();
+    selection.warnings.extend(inputs.and_then(|i| uncertainty::integrating_doubt(&selection, i)));
     let bounds = |v: &[usize]| (v[0] as u32, v[v.len() - 1] as u32);
     let grid = reduce::doubts::GridBounds { nb: bounds(&job.nb), nf: bounds(&job.nf), delay: bounds(&job.delays) };
     let rbic_pick = selection.picks.get(&reduce::Rule::Rbic).and_then(|p| p.model.as_ref());

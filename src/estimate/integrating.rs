@@ -33,17 +33,29 @@
 //! `floor(4 (N/100)^(2/9))`, so coloured noise is allowed for) gives its variance `g^T C g =
 //! v^T S v`, `G^T v = g`, without linearisation: the long-run variance of the one series `v^T
 //! h_t`. A(1) stays well determined where single roots do not (two close poles, a double
-//! integrator: a root moves with the square root of a coefficient there). The warning fires
+//! integrator: a root moves with the square root of a coefficient there). The test fires
 //! when the 95 % interval `A(1) +- 1.96 se` reaches 0 or lies below it. It is reported as the
 //! slowest pole p (largest real part) with the interval `1 - [A(1) +- 1.96 se] / R(1)`, `R(1)
 //! = prod (1 - p_i)` over the other poles: the delta method of `p = 1 - A(1)/R(1)` with those
 //! held.
 //!
+//! The judgement ([`doubt`]): a slow drift in the output (a disturbance, not the plant) also
+//! puts the low-order fit's pole at 1, so the test is judged against the models fitted to the
+//! record (a run's watched picks, `oesweep fit`'s model). A model on the stability boundary
+//! agrees with it: the integrating plant is named. Stable models are judged by their
+//! residuals (the initial state of each experiment fitted): the KPSS statistic
+//! ([`drift_statistic`]) of their Huber-clipped residuals against a level. None above its 5 %
+//! point: the stable models explain the record, and nothing is said. Otherwise the warning
+//! names what was seen, the drift of those residuals, whose cause may be a slow disturbance or
+//! an integrating plant (a stable model of an integrator leaves a drift too).
+//!
 //! What no test can do: a stable pole whose time constant is as long as the record or longer
-//! gives data that an integrator explains as well; there the warning may fire (METHOD.md 7.3
-//! measures where).
+//! gives data that an integrator explains as well; there the test may fire and the fits lie on
+//! the boundary (METHOD.md 7.3 measures where).
 
 use super::initial_guess::{arx, regressor};
+use super::initial_state::add_free_response;
+use super::least_squares::BOUNDARY;
 use super::problem::Problem;
 use crate::oe;
 use faer::Mat;
@@ -220,20 +232,33 @@ fn a_at_1_variance(prob: &Problem, fit: &IvFit) -> Option<f64> {
     let ones = Mat::from_fn(dd, 1, |i, _| f64::from(u8::from((prob.nb..prob.nb + prob.nf).contains(&i))));
     let v = crate::dense::Lu::new(g.transpose()).solve(ones.as_ref());
     let lag = (4.0 * (fit.rows as f64 / 100.0).powf(2.0 / 9.0)).floor().max(1.0) as usize;
-    let mut ring = vec![(usize::MAX, 0.0); lag + 1];
-    let mut var = 0.0;
+    // The complete rows of an experiment are consecutive: one run of h per experiment.
+    let (mut h, mut runs, mut start) = (Vec::with_capacity(fit.rows), Vec::new(), usize::MAX);
     filtered_rows(prob, &x, &fit.filter, lags, |t, phi, z| {
-        let h = eps(phi).clamp(-cut, cut) * (0..dd).map(|i| v[(i, 0)] * if i < d { z[i] } else { phi[i] }).sum::<f64>();
-        ring[t % (lag + 1)] = (t, h);
-        var += h * h;
-        for l in 1..=lag.min(t - prob.experiment_start(t)) {
-            let (tp, past) = ring[(t - l) % (lag + 1)];
-            if tp == t - l {
-                var += 2.0 * (1.0 - l as f64 / (lag + 1) as f64) * h * past;
-            }
+        if prob.experiment_start(t) != start {
+            start = prob.experiment_start(t);
+            runs.push(h.len());
         }
+        h.push(eps(phi).clamp(-cut, cut) * (0..dd).map(|i| v[(i, 0)] * if i < d { z[i] } else { phi[i] }).sum::<f64>());
     });
+    runs.push(h.len());
+    let var = long_run_sum(runs.windows(2).map(|w| &h[w[0]..w[1]]), lag);
     var.is_finite().then_some(var.max(0.0))
+}
+
+/// `sum_t h_t^2 + 2 sum_{l=1}^{L} (1 - l/(L+1)) sum_t h_t h_{t-l}` over each run of `h`, no
+/// product pairing two runs: N times the Newey-West long-run variance (Bartlett weights) of
+/// the series, the one of the test's A(1) and of the residuals' drift statistic.
+fn long_run_sum<'h>(runs: impl Iterator<Item = &'h [f64]>, lag: usize) -> f64 {
+    runs.map(|h| {
+        let mut s = h.iter().map(|v| v * v).sum::<f64>();
+        for l in 1..=lag.min(h.len().saturating_sub(1)) {
+            let w = 1.0 - l as f64 / (lag + 1) as f64;
+            s += 2.0 * w * h[l..].iter().zip(h).map(|(a, b)| a * b).sum::<f64>();
+        }
+        s
+    })
+    .sum()
 }
 
 /// The robust scale of the equation errors of `theta` filtered by `1/F`, the pulses left out:
@@ -370,4 +395,128 @@ fn test_poles(prob: &Problem, fit: &IvFit) -> Option<PoleTest> {
         test.interval = Some((1.0 - hi / rest.0, 1.0 - lo / rest.0));
     }
     Some(test)
+}
+
+/// A model fitted to the record, against which the test is judged: its name in the warning
+/// (e.g. "OE(2,2) delay 1 (picked by rbic)"), its largest pole radius, and its residuals'
+/// [`drift_statistic`] (None when the radius alone decides: a pole on the stability boundary).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Judged {
+    pub name: String,
+    pub radius: f64,
+    pub drift: Option<f64>,
+}
+
+/// The 5 % point of the KPSS level statistic (Kwiatkowski, Phillips, Schmidt and Shin 1992,
+/// table 1): above it the residuals drift.
+pub const DRIFT_LEVEL: f64 = 0.463;
+
+/// Whether a model with this pole radius is judged by its residuals (inside the stability
+/// boundary) or agrees with the test by its radius alone.
+pub fn judged_by_residuals(radius: f64) -> bool {
+    radius < BOUNDARY
+}
+
+/// The KPSS statistic of the model `theta`'s residuals on the record `prob` as tested (its
+/// head of [`MAX_ROWS`]), the initial state of each experiment fitted (the transient of a slow
+/// model started from rest is no drift): see [`drift_statistic`].
+pub fn residual_drift(prob: &Problem, theta: &[f64]) -> f64 {
+    let prob = prob.head(prob.n().min(MAX_ROWS));
+    let mut r = prob.simulate_vec(theta);
+    let (b, f, _) = prob.split(theta);
+    for x in prob.experiments() {
+        add_free_response(f, b.len(), prob.delay, &prob.y[x.clone()], &mut r[x]);
+    }
+    r.iter_mut().zip(prob.y).for_each(|(r, y)| *r = y - *r);
+    drift_statistic(&r, prob.seams)
+}
+
+/// The KPSS statistic of `r` about a level in each experiment (METHOD.md 7.3):
+/// `eta = sum_t S_t^2 / (sum_k N_k^2 s^2)`, `S_t` the partial sums of `psi(r)` less its mean
+/// within each experiment, `s^2` their Newey-West long-run variance with Bartlett weights up
+/// to lag `floor(12 (N/100)^(1/4))` (KPSS's own), `psi` Huber's at `k = 2` robust scales
+/// about the median (a spike moves S by at most that). About 1/6 for residuals that wander
+/// about a level, growing with N when they drift; 0 for constant residuals.
+pub fn drift_statistic(r: &[f64], seams: &[usize]) -> f64 {
+    let n = r.len();
+    if n < 2 {
+        return 0.0;
+    }
+    let mut sorted = r.to_vec();
+    let mid = n / 2;
+    let centre = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let scale = robust_scale(&r.iter().map(|v| v - centre).collect::<Vec<_>>(), |_| true);
+    let cut = HUBER_K * scale;
+    let mut psi: Vec<f64> = r.iter().map(|v| (v - centre).clamp(-cut, cut)).collect();
+    let experiments = crate::data::experiment_ranges(n, seams);
+    let (mut sums, mut lengths) = (0.0, 0.0);
+    for x in &experiments {
+        let e = &mut psi[x.clone()];
+        let mean = e.iter().sum::<f64>() / e.len().max(1) as f64;
+        let mut s = 0.0;
+        for v in e.iter_mut() {
+            *v -= mean;
+            s += *v;
+            sums += s * s;
+        }
+        lengths += (e.len() as f64).powi(2);
+    }
+    let lag = (12.0 * (n as f64 / 100.0).powf(0.25)).floor() as usize;
+    let variance = long_run_sum(experiments.iter().map(|x| &psi[x.clone()]), lag) / n as f64;
+    if variance > 0.0 { sums / lengths / variance } else { 0.0 }
+}
+
+/// The warning of the test judged against the models fitted to the record (METHOD.md 7.3):
+/// none when the test does not fire; when it does, the integrating plant's when no model was
+/// fitted or one has a pole on the stability boundary (the fit agrees), otherwise the drift
+/// of the residuals of those stable models whose residuals drift, and none when no residuals
+/// drift (the stable models explain the record the test's pole came from). `record` names
+/// the record in the warning.
+pub fn doubt(test: &PoleTest, record: &str, judged: &[Judged]) -> Option<String> {
+    if !test.integrating {
+        return None;
+    }
+    let what = pole_words(test);
+    if judged.is_empty() || judged.iter().any(|j| !judged_by_residuals(j.radius)) {
+        return Some(format!(
+            "a low-order IV fit of {record} has {what}: the plant looks integrating (or unstable), and an \
+             output-error model forces a stable model onto it (identify from the differenced output, or in \
+             closed loop)"
+        ));
+    }
+    let drifting: Vec<(&Judged, f64)> =
+        judged.iter().filter_map(|j| j.drift.filter(|&d| d > DRIFT_LEVEL).map(|d| (j, d))).collect();
+    let ((first, stat), rest) = drifting.split_first()?;
+    let mut models = format!("{} (KPSS statistic {stat:.2}, slowest pole at radius {:.4})", first.name, first.radius);
+    for (j, stat) in rest {
+        models.push_str(&format!(" and of {} ({stat:.2}, {:.4})", j.name, j.radius));
+    }
+    let their = if rest.is_empty() { "its" } else { "their" };
+    Some(format!(
+        "the residuals of {models} drift (above {DRIFT_LEVEL}, the 5 % point for residuals about a level), \
+         though {their} poles are stable: a slow disturbance that the model does not explain, or an integrating \
+         plant (a low-order IV fit of {record} has {what}); take the drift out of the record (detrend it, or \
+         high-pass both signals), or identify from the differenced output if the plant integrates"
+    ))
+}
+
+/// The test's pole and its 95 % interval in words (enough decimals that the ends differ), or
+/// the slowest complex pair and A(1)'s interval.
+fn pole_words(test: &PoleTest) -> String {
+    let decimals = |w: f64| (-w.log10()).ceil().clamp(3.0, 8.0) as usize + 1;
+    let (p, a, sd) = (test.pole, test.a_at_1, test.a_at_1_std);
+    match test.interval {
+        Some((lo, hi)) => {
+            let dp = decimals(hi - lo);
+            let place = if lo > 1.0 { ", above 1" } else { " that may be 1" };
+            format!("a pole at {:.dp$} (95 % interval {lo:.dp$}..{hi:.dp$}){place}", p.0)
+        }
+        None => format!(
+            "its slowest poles at {:.4} +- {:.4}i and A(1) = {a:.3e} (95 % interval {:.3e}..{:.3e}), 0 for a pole at 1",
+            p.0,
+            p.1.abs(),
+            a - Z95 * sd,
+            a + Z95 * sd
+        ),
+    }
 }

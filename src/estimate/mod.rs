@@ -20,7 +20,7 @@
 //! problem        record + structure, Solution                  options, normal, oe
 //! initial_state  free response, model output                   linalg
 //! initial_guess  ARX + IV starts                                problem
-//! integrating    the record's integrating-plant test (IV pole)  problem, initial_guess, cancellation
+//! integrating    the record's integrating-plant test (IV pole)  problem, initial_guess, initial_state, least_squares
 //! separable      variable projection inner problem             problem, linalg, normal, huber
 //! residual_tests whiteness and independence of the residuals    kernels
 //! evidence       covariance, residual tests                    problem, normal, huber, cancellation, residual_tests

@@ -4,6 +4,7 @@
 use super::{Records, ValidJob};
 use crate::data::{self, Levels, Offset, Record};
 use crate::error::Result;
+use crate::estimate::integrating::{PoleTest, pole_test};
 
 /// The records a job names, read and checked, with their levels taken out.
 pub struct Inputs {
@@ -13,6 +14,10 @@ pub struct Inputs {
     pub levels: Levels,
     /// Things the user should know about the data (printed once, kept in selection.json).
     pub warnings: Vec<String>,
+    /// The integrating-plant test of the estimation record (METHOD.md 7.3; None when its
+    /// regressions are degenerate): its warning waits for the models fitted to the record
+    /// ([`crate::estimate::integrating::doubt`]).
+    pub pole_test: Option<PoleTest>,
 }
 
 /// Read the job's data files and check them against the largest orders of the grid.
@@ -56,7 +61,7 @@ pub fn read_inputs(
             .as_ref()
             .ok()
             .filter(|e| data::check_for_model(e, nb_max, nf_max, delay_max).is_ok())
-            .map(|e| integrating_warning(e, delay));
+            .map(|e| pole_test(&e.u, &e.y, &e.seams, delay));
         let val = val.map(|h| h.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)));
         (est, val, integrating)
     });
@@ -70,7 +75,7 @@ fn read_experiments(specs: &Records) -> Result<Vec<Record>> {
 }
 
 /// [`read_inputs`] of records already in memory: checked against the largest model, levels
-/// taken out, the data's warnings (the integrating-plant test with input delay `delay`).
+/// taken out, the data's warnings and the integrating-plant test with input delay `delay`.
 pub fn inputs_of_records(
     est: Record,
     val: Option<Record>,
@@ -78,62 +83,31 @@ pub fn inputs_of_records(
     largest: (usize, usize, usize),
     delay: usize,
 ) -> Result<Inputs> {
-    inputs_with(est, val, offset, largest, |est| integrating_warning(est, delay))
+    inputs_with(est, val, offset, largest, |est| pole_test(&est.u, &est.y, &est.seams, delay))
 }
 
-/// [`inputs_of_records`] with the integrating-plant warning of the estimation record as
-/// `integrating` gives it (called once the records passed their checks).
+/// [`inputs_of_records`] with the integrating-plant test of the estimation record as
+/// `integrating` gives it (called once the records passed their checks; taken before the
+/// levels come out: the test fits its own constant).
 fn inputs_with(
     mut est: Record,
     mut val: Option<Record>,
     offset: Offset,
     (nb_max, nf_max, delay_max): (usize, usize, usize),
-    integrating: impl FnOnce(&Record) -> Option<String>,
+    integrating: impl FnOnce(&Record) -> Option<PoleTest>,
 ) -> Result<Inputs> {
     data::check_for_model(&est, nb_max, nf_max, delay_max)?;
     if let Some(rec) = &val {
         data::check_for_model(rec, nb_max, nf_max, delay_max)?;
     }
     let levels = Levels::of(offset, &est);
-    let mut warnings: Vec<String> = data::levels::offset_warning(offset, &est).into_iter().collect();
-    warnings.extend(integrating(&est));
+    let warnings: Vec<String> = data::levels::offset_warning(offset, &est).into_iter().collect();
+    let pole_test = integrating(&est);
     levels.apply(&mut est);
     if let Some(v) = val.as_mut() {
         levels.apply(v);
     }
-    Ok(Inputs { est, val, levels, warnings })
-}
-
-/// A warning when a low-order IV fit of the estimation record has a pole that may be 1, or a
-/// real one above it (`estimate::integrating`, METHOD.md 7.3). Taken before the levels come
-/// out: the test fits its own constant.
-fn integrating_warning(est: &Record, delay: usize) -> Option<String> {
-    let test = crate::estimate::integrating::pole_test(&est.u, &est.y, &est.seams, delay)?;
-    if !test.integrating {
-        return None;
-    }
-    // Enough decimals that an interval's ends differ.
-    let decimals = |w: f64| (-w.log10()).ceil().clamp(3.0, 8.0) as usize + 1;
-    let (p, a, sd) = (test.pole, test.a_at_1, test.a_at_1_std);
-    let what = match test.interval {
-        Some((lo, hi)) => {
-            let dp = decimals(hi - lo);
-            let place = if lo > 1.0 { ", above 1" } else { " that may be 1" };
-            format!("a pole at {:.dp$} (95 % interval {lo:.dp$}..{hi:.dp$}){place}", p.0)
-        }
-        None => format!(
-            "its slowest poles at {:.4} +- {:.4}i and A(1) = {a:.3e} (95 % interval {:.3e}..{:.3e}), 0 for a pole at 1",
-            p.0,
-            p.1.abs(),
-            a - 1.96 * sd,
-            a + 1.96 * sd
-        ),
-    };
-    Some(format!(
-        "a low-order IV fit of {} has {what}: the plant looks integrating (or unstable), and an output-error \
-         model forces a stable model onto it (identify from the differenced output, or in closed loop)",
-        est.path.display()
-    ))
+    Ok(Inputs { est, val, levels, warnings, pole_test })
 }
 
 /// The records of a checked job, as read from the files (levels not taken out): for the

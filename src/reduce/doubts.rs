@@ -1,8 +1,9 @@
 //! Warnings that say when a pick is doubtful (METHOD.md 7.2), for the lead rule's and the
 //! paper's picks: a pick on the grid's edge (the largest nB or nF searched, or an edge delay)
 //! and picks on the stability boundary (a pole at radius >= 0.999: the plant looks integrating
-//! or unstable, and an output-error model forces a stable one onto it). The sign of an
-//! integrating plant in the data is found where the records are read ([`crate::job::read_inputs`]).
+//! or unstable, and an output-error model forces a stable one onto it). The record's
+//! integrating-plant test runs where the records are read ([`crate::job::read_inputs`]) and is
+//! judged against these picks' residuals after the sweep (`engine::uncertainty`, METHOD.md 7.3).
 //!
 //! An edge pick says "widen the grid" only where the evidence says the data want more: the
 //! size-penalising rule (`rbic`) picks on the edge too and the model just beyond that edge,

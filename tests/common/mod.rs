@@ -49,6 +49,30 @@ pub fn oe1010() -> (Vec<f64>, Vec<f64>) {
     (b, f)
 }
 
+/// A stand-in for the DaISy heat exchanger record (97-002: flow -> outlet temperature, 4000
+/// samples, Ts = 1 s), whose stable fits have their slowest pole at 0.978 (tau = 45 s) and fit
+/// 78 %: a plant with poles 0.978 and 0.85 and unit gain, a random binary input held 20
+/// samples, white noise of 10 % of the output's RMS and a random walk (steps 0.7 % of it) in
+/// the output, about a level of 20.
+pub fn drifting_exchanger(seed: u64) -> (Vec<f64>, Vec<f64>) {
+    let n = 4000;
+    let f = f_from_poles(&[], &[0.978, 0.85]);
+    let b = [1.0 + f.iter().sum::<f64>()];
+    let u = binary_input(n, 20, 1.0, seed);
+    let y0 = oe::simulate_vec(&b, &f, 1, &u);
+    let rms = (y0.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
+    let mut rng = Lcg(seed + 1);
+    let mut drift = 0.0;
+    let y = y0
+        .iter()
+        .map(|v| {
+            drift += 0.007 * rms * rng.normal();
+            v + 0.1 * rms * rng.normal() + drift + 20.0
+        })
+        .collect();
+    (u, y)
+}
+
 /// Spikes and noise of [`simulate`].
 pub struct Noise<'a> {
     pub amplitude: f64,
