@@ -39,7 +39,7 @@ fn sweep_throughput(c: &mut Criterion) {
         group.bench_with_input(BenchmarkId::new("threads", threads), &threads, |b, &threads| {
             b.iter(|| {
                 let progress = Progress::new(plan.n_cells(), true);
-                sweep::run(&plan, &ctx, threads, &progress, Control::none())
+                sweep::run(&plan, &ctx, threads, &progress, Control::none()).expect("the workers start")
             })
         });
     }

@@ -20,7 +20,9 @@
 //!   deletes the checkpoint, creates MARKER and waits until MARKER is deleted: a kill there
 //!   leaves complete results beside a complete checkpoint;
 //! - `kernels:generic`: the process runs the baseline kernels on a CPU with AVX2 and FMA, as a
-//!   node of another CPU family would ([`crate::kernels::Flavour`]; tests/kernel_flavour.rs).
+//!   node of another CPU family would ([`crate::kernels::Flavour`]; tests/kernel_flavour.rs);
+//! - `threads:refused`: every worker pool the process builds is refused, as a system at its
+//!   thread limit would refuse it ([`crate::pool::local`]; tests/nested_check.rs).
 //!
 //! A pause also ends when the process receives SIGINT or SIGTERM: its own handler is
 //! registered after the command armed [`crate::checkpoint::StopOnSignal`] and calls that one
@@ -43,6 +45,7 @@ mod hooks {
         PausePart(u64, PathBuf),
         PauseMerge(PathBuf),
         GenericKernels,
+        RefusedThreads,
     }
 
     fn cell(s: &str) -> Option<(usize, usize, usize)> {
@@ -61,6 +64,7 @@ mod hooks {
             }
             "pause_merge" => Some(Hook::PauseMerge(PathBuf::from(rest))),
             "kernels" if rest == "generic" => Some(Hook::GenericKernels),
+            "threads" if rest == "refused" => Some(Hook::RefusedThreads),
             "pause_part" => {
                 let (n, marker) = rest.split_once(':')?;
                 Some(Hook::PausePart(n.trim().parse().ok()?, PathBuf::from(marker)))
@@ -176,6 +180,20 @@ pub fn generic_kernels() -> bool {
     }
 }
 
+/// Why the process must not build a worker pool (asked by [`crate::pool::local`] before each
+/// build); None: build it.
+pub fn refused_threads() -> Option<String> {
+    #[cfg(feature = "failpoints")]
+    {
+        matches!(hooks::hook(), Some(hooks::Hook::RefusedThreads))
+            .then(|| "the system refused them (test hook OESWEEP_FAILPOINT=threads:refused)".to_string())
+    }
+    #[cfg(not(feature = "failpoints"))]
+    {
+        None
+    }
+}
+
 /// Called by the checkpoint writer once its `n`-th part of this run (1-based) is durable.
 #[inline]
 pub fn after_part(n: u64) {
@@ -201,7 +219,17 @@ mod tests {
         assert_eq!(parse("pause_part:1:/tmp/m"), Some(Hook::PausePart(1, PathBuf::from("/tmp/m"))));
         assert_eq!(parse("pause_merge:/tmp/m"), Some(Hook::PauseMerge(PathBuf::from("/tmp/m"))));
         assert_eq!(parse("kernels:generic"), Some(Hook::GenericKernels));
-        for bad in ["kernels:avx2", "panic:2,2", "panic:2,2,1,4", "pause_part:x:/m", "pause_cell:1,1,1", "stop:1", ""] {
+        assert_eq!(parse("threads:refused"), Some(Hook::RefusedThreads));
+        for bad in [
+            "kernels:avx2",
+            "threads:0",
+            "panic:2,2",
+            "panic:2,2,1,4",
+            "pause_part:x:/m",
+            "pause_cell:1,1,1",
+            "stop:1",
+            "",
+        ] {
             assert_eq!(parse(bad), None, "{bad}");
         }
     }

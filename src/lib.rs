@@ -18,6 +18,7 @@ pub mod lock;
 pub(crate) mod names;
 pub mod oe;
 pub mod plan;
+pub mod pool;
 pub mod profile;
 pub mod progress;
 pub mod reduce;

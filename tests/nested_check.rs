@@ -4,6 +4,7 @@
 //! cells, both give the same table bit for bit (every column but `seconds`), and so does a
 //! whole run that resumes a shard's rows on another thread count: the checkpoint holds the
 //! walks' rows, and the check of a cell reads only its row and its sub-models' final rows.
+//! Workers the system refuses are an error, never a table without its check.
 
 mod common;
 
@@ -54,4 +55,46 @@ fn the_graphs_check_a_merges_waves_and_a_resumed_run_give_the_same_table() {
     ok(oesweep(&["run", &path(&resumed), "--shard", "0/2", "--threads", "1", "--quiet"]));
     ok(oesweep(&["run", &path(&resumed), "--threads", "1", "--quiet"]));
     assert!(table(&dir.path().join("resumed")) == expected, "the resumed run's table differs from the whole run's");
+}
+
+/// `oesweep-testhooks` with every worker pool refused, as a system at its thread limit refuses
+/// it (`OESWEEP_FAILPOINT=threads:refused`): exit 2, one line naming the work, nothing written.
+fn refused(args: &[&str]) -> String {
+    let o = Command::new(env!("CARGO_BIN_EXE_oesweep-testhooks"))
+        .env("OESWEEP_FAILPOINT", "threads:refused")
+        .args(args)
+        .output()
+        .expect("binary runs");
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+    assert!(err.contains("the system refused them"), "{err}");
+    err
+}
+
+/// A merge that cannot start the nested check's workers writes nothing, not the walks' table
+/// as if checked; a run and `fit --bootstrap` fail alike.
+#[test]
+fn refused_workers_are_an_error_not_a_table_without_its_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = common::piezo_job(dir.path(), "out", "refused", 1000, ([1, 3], [1, 3]), (0.5, 2));
+    let (job, out) = (job.to_str().unwrap(), dir.path().join("out"));
+    for shard in ["0/2", "1/2"] {
+        ok(oesweep(&["run", job, "--shard", shard, "--threads", "1", "--quiet"]));
+    }
+    let before = common::snapshot(&out, true);
+    let err = refused(&["merge", out.to_str().unwrap()]);
+    assert!(err.contains("cannot start a thread per core for the nested check"), "{err}");
+    assert!(common::snapshot(&out, true) == before, "a refused merge changed the output folder");
+    ok(oesweep(&["merge", out.to_str().unwrap()]));
+    assert!(out.join("cells.parquet").is_file());
+
+    let fresh = common::piezo_job(dir.path(), "fresh", "refused", 1000, ([1, 2], [1, 2]), (0.5, 2));
+    let err = refused(&["run", fresh.to_str().unwrap(), "--threads", "2", "--quiet"]);
+    assert!(err.contains("cannot start 2 threads for the sweep"), "{err}");
+    assert!(!dir.path().join("fresh/cells.parquet").exists());
+    let data = dir.path().join("est.csv");
+    let fit = ["fit", "--data", data.to_str().unwrap(), "--nb", "2", "--nf", "2", "--k", "1", "--bootstrap", "40"];
+    let err = refused(&fit);
+    assert!(err.contains("cannot start a thread per core for the bootstrap"), "{err}");
 }

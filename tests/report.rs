@@ -280,8 +280,7 @@ fn check_page(out: &Path) -> PathBuf {
 fn browser_renders_report_with_every_image() {
     // Under CI (CI=true, where .ci/run installs chromium first) or when asked, a browser test
     // that cannot run is a failure; elsewhere it says it skipped.
-    let required =
-        std::env::var_os("OESWEEP_REQUIRE_CHROMIUM").is_some() || std::env::var("CI").is_ok_and(|v| v == "true");
+    let required = std::env::var_os("OESWEEP_REQUIRE_CHROMIUM").is_some() || common::under_ci();
     let Some(chromium) = find_chromium() else {
         assert!(!required, "chromium is not on the PATH (required under CI=true or OESWEEP_REQUIRE_CHROMIUM)");
         eprintln!(

@@ -216,6 +216,10 @@ pub struct FitArgs {
     /// (METHOD.md 17.3). `--bootstrap` alone: B = 200.
     #[arg(long, value_name = "B", num_args = 0..=1, default_missing_value = "200")]
     pub bootstrap: Option<usize>,
+    /// Worker threads of the bootstrap's refits (default: all cores). The intervals do not
+    /// depend on it.
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,

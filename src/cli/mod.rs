@@ -29,15 +29,35 @@ use print::{
     describe_grid, print_fit_summary, print_layout, print_pick_bootstraps, print_picks, print_report, print_rules,
 };
 
-/// The whole command line: parse the arguments, run the command, print an error as one line
-/// and map it to the exit code (0 success, 1 failure of the work itself, 2 bad input).
+/// The whole command line of a process that is the command's own (the `oesweep` binaries):
+/// [`quiet_reader_panics`], then [`main_with_args`] with the process's arguments. Prints an
+/// error as one line and maps it to the exit code (0 success, 1 failure of the work itself, 2
+/// bad input).
 pub fn main() -> std::process::ExitCode {
+    quiet_reader_panics();
     std::process::ExitCode::from(main_with_args(std::env::args_os()))
+}
+
+/// For a process that is the command's own: a bad data file is one line of error, not also a
+/// panic message. The library catches a data reader's panic and makes it an input error
+/// ([`crate::data::reading_data`]); this panic hook leaves that panic unprinted and hands every
+/// other to the hook in place before. Set for the rest of the process: [`main`] calls it, never
+/// [`main_with_args`], which a host runs in its own process.
+pub fn quiet_reader_panics() {
+    let print = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !crate::data::reading_data() {
+            print(info);
+        }
+    }));
 }
 
 /// [`main`] with the arguments given (the program's name first) rather than the process's:
 /// for a host process that runs the command line in-process (the Python package's `oesweep`
 /// command). Returns the exit code instead of exiting, also for `--help` and usage errors.
+/// It leaves the host's panic hook alone (a data reader's panic, an input error here too,
+/// reaches that hook), and `run`'s SIGINT/SIGTERM handlers are the host's again when it
+/// returns.
 pub fn main_with_args<I, T>(args: I) -> u8
 where
     I: IntoIterator<Item = T>,
@@ -59,20 +79,8 @@ where
             return 2;
         }
     };
-    // A bad data file is one line of error, not also a panic message: the library catches a
-    // reader's panic and makes it an input error, and the command leaves that panic unprinted.
-    // The hook in place before is put back (as a wrapper that calls it) when the command ends,
-    // so a host that runs the command line in-process keeps its own.
-    let before: std::sync::Arc<dyn Fn(&std::panic::PanicHookInfo<'_>) + Send + Sync> =
-        std::sync::Arc::from(std::panic::take_hook());
-    let print = before.clone();
-    std::panic::set_hook(Box::new(move |info| {
-        if !crate::data::reading_data() {
-            print(info);
-        }
-    }));
     drop(stdout::take_error());
-    let code = match run(cli) {
+    match run(cli) {
         Ok(code) => stdout::settle(code),
         Err(e) => {
             // One line, whatever the paths contain: control characters are escaped.
@@ -84,10 +92,7 @@ where
             eprintln!("error: {msg}");
             if e.is_bad_input() { 2 } else { 1 }
         }
-    };
-    drop(std::panic::take_hook());
-    std::panic::set_hook(Box::new(move |info| before(info)));
-    code
+    }
 }
 
 /// Run a parsed command; returns the process exit code.
@@ -190,6 +195,7 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
             ..Default::default()
         },
         bootstrap: a.bootstrap,
+        threads: a.threads,
     };
     let report = engine::fit(&req)?;
     for w in &report.warnings {

@@ -400,8 +400,8 @@ thread_local! {
 }
 
 /// True while this thread runs a data reader inside [`guarded`], whose panic becomes an input
-/// error. For a program's own panic hook (the command line's) that wants to leave such panics
-/// unprinted; the library installs no hook.
+/// error. For a program's own panic hook that wants to leave such panics unprinted (the
+/// `oesweep` binary's, [`crate::cli::quiet_reader_panics`]); the library installs no hook.
 pub fn reading_data() -> bool {
     READING.with(|r| r.get() > 0)
 }

@@ -169,13 +169,7 @@ impl RunOptions {
                 checkpoint::MAX_BATCH_SECONDS
             )));
         }
-        if self.threads > sweep::MAX_THREADS {
-            return Err(Error::Invalid(format!(
-                "--threads must be at most {} (0: all cores), got {}",
-                sweep::MAX_THREADS,
-                self.threads
-            )));
-        }
+        crate::pool::check_threads(self.threads).map_err(|m| Error::Invalid(format!("--threads {m}")))?;
         if self.shard.is_some() && self.report {
             return Err(Error::Invalid(
                 "--report needs the merged table: use `oesweep merge OUTPUT --report` once all shards are done".into(),
@@ -367,6 +361,8 @@ fn run_loaded(
     };
     progress.finish();
     let saved = writer.finish();
+    // Workers refused: no cell was computed, a rerun starts where this one would have.
+    let outcome = outcome?;
     let mut result = RunOutcome {
         label,
         out: out.clone(),
@@ -514,7 +510,7 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
         let mut prepared = prepare_job(g.job.clone()).ok();
         let mut rows = g.rows;
         if let Some(p) = &mut prepared {
-            let skipped = sweep::nested_pass_of_rows_from(&g.kernels, &g.plan, &p.context(), &mut rows);
+            let skipped = sweep::nested_pass_of_rows_from(&g.kernels, &g.plan, &p.context(), &mut rows)?;
             p.inputs.warnings.extend(skipped);
         }
         let inputs = prepared.as_ref().map(|p| &p.inputs);

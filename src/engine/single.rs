@@ -41,6 +41,9 @@ pub struct FitRequest {
     /// Bootstrap replicates of the whole estimation (`--bootstrap B`; None: none,
     /// METHOD.md 17.3).
     pub bootstrap: Option<usize>,
+    /// Worker threads of the bootstrap's replicates (0: all cores), on a pool of its own: the
+    /// host's rayon pool is left alone. The intervals do not depend on it.
+    pub threads: usize,
 }
 
 /// Report of [`fit`] (`fit --json` prints it).
@@ -112,6 +115,7 @@ impl FitRequest {
             band: None,
             solver: SolverOptions::default(),
             bootstrap: None,
+            threads: 0,
         }
     }
 
@@ -144,6 +148,7 @@ impl FitRequest {
         if let Some(b) = self.bootstrap {
             estimate::bootstrap::check_replicates(b).map_err(|m| Error::Invalid(format!("--bootstrap {m}")))?;
         }
+        crate::pool::check_threads(self.threads).map_err(|m| Error::Invalid(format!("--threads {m}")))?;
         Ok(())
     }
 }
@@ -246,11 +251,15 @@ fn fit_records(
         "--bootstrap B",
     ));
     let covariance = cov.map(|c| c.chunks(dim).map(<[f64]>::to_vec).collect());
-    let bootstrap = req.bootstrap.map(|replicates| {
-        let settings = estimate::bootstrap::Settings { replicates, ..Default::default() };
-        // The offset, when a parameter, is estimated in the data's units: nothing to convert.
-        estimate::bootstrap::run(&prob, &theta, Some(huber.k), &settings, &req.solver)
-    });
+    let bootstrap = req
+        .bootstrap
+        .map(|replicates| {
+            let settings = estimate::bootstrap::Settings { replicates, ..Default::default() };
+            let pool = crate::pool::local(req.threads, "for the bootstrap")?;
+            // The offset, when a parameter, is estimated in the data's units: nothing to convert.
+            Ok(pool.install(|| estimate::bootstrap::run(&prob, &theta, Some(huber.k), &settings, &req.solver)))
+        })
+        .transpose()?;
     let parameters = crate::export::model::parameter_names(req.nb, req.nf, req.offset.estimated());
     // Reported in the data's units, as in the table.
     ls.offset = levels.offset(ls.offset);

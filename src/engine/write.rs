@@ -9,7 +9,7 @@
 //! under temporary names and put in place in a fixed order, as one after the other would be.
 
 use super::{beyond, uncertainty};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::export;
 use crate::job::{Inputs, ValidJob};
 use crate::reduce::{self, ReduceOptions, Selection};
@@ -28,10 +28,7 @@ pub(super) fn write_results(
     inputs: Option<&Inputs>,
     threads: usize,
 ) -> Result<Selection> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| Error::Invalid(format!("cannot start {threads} threads to write the results: {e}")))?;
+    let pool = crate::pool::local(threads, "to write the results")?;
     let (cells, picked) = pool.install(|| {
         rayon::join(
             || export::parquet::stage_cells(&out.join(export::CELLS_FILE), rows),

@@ -17,8 +17,8 @@
 //! noise in them) and their spikes in place with their neighbours; L = round(N^(1/3)) is the
 //! order of the optimal block length for distribution estimates (Hall, Horowitz and Jing
 //! 1995). Replicate r draws from its own stream of the seed ([`Settings::seed`]) and the
-//! replicates run in parallel (rayon, one [`Workspace`] each): the result does not depend on
-//! the thread count.
+//! replicates run in parallel on the current rayon pool (one [`Workspace`] each; the callers
+//! install their own, [`crate::pool::local`]): the result does not depend on the thread count.
 
 use super::fit::Judge;
 use super::least_squares::{BOUNDARY, fit_ls};

@@ -29,6 +29,7 @@
 //! out work while running cells finish.
 
 use crate::data::{Levels, Record};
+use crate::error::Result;
 use crate::estimate::chains::panic_message;
 use crate::estimate::{self, InitialState, Judge, Problem, SolverOptions, Workspace};
 use crate::job::StartStrategy;
@@ -179,15 +180,11 @@ impl Outcome {
     }
 }
 
-/// Most worker threads a run may ask for (`--threads`): more than any machine oesweep runs on
-/// has cores, and each worker holds a workspace; `--threads 100000` made the process spend
-/// minutes creating threads or abort when the system refused them.
-pub const MAX_THREADS: usize = 1024;
-
-/// Run the cells of `plan` that `control.done` does not hold, on `threads` workers
-/// (0 = all cores; at most [`MAX_THREADS`], checked by the caller).
-pub fn run(plan: &Plan, ctx: &Context, threads: usize, progress: &Progress, control: Control) -> Outcome {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
+/// Run the cells of `plan` that `control.done` does not hold, on `threads` workers of a pool of
+/// their own ([`crate::pool::local`]; 0 = all cores; at most [`crate::pool::MAX_THREADS`],
+/// checked by the caller). The only error: the system refused the workers.
+pub fn run(plan: &Plan, ctx: &Context, threads: usize, progress: &Progress, control: Control) -> Result<Outcome> {
+    let pool = crate::pool::local(threads, "for the sweep")?;
     let t0 = Instant::now();
     let mut done: HashMap<RowKey, CellRow> = HashMap::with_capacity(control.done.len());
     for row in control.done {
@@ -210,7 +207,7 @@ pub fn run(plan: &Plan, ctx: &Context, threads: usize, progress: &Progress, cont
     if let Some(p) = &ctx.profile {
         p.serial("sweep_serial", (seconds - p.report().schedule.wall_seconds).max(0.0));
     }
-    Outcome { rows, seconds, resumed, computed, interrupted }
+    Ok(Outcome { rows, seconds, resumed, computed, interrupted })
 }
 
 /// What the Huber cells of a pair take from its least-squares phase: the `ls` row, and sigma

@@ -21,6 +21,7 @@
 //! relative 1e-6 went from 3672 to 3745 of 3840, for 353 warm fits (+3 % iterations).
 
 use super::{Context, Workspaces};
+use crate::error::Result;
 use crate::estimate::{self, Judge, StartKind};
 use crate::oe::Structure;
 use crate::plan::Plan;
@@ -93,14 +94,15 @@ pub(super) fn check_cell<'r>(
 /// that sub-model's solution ([`check_cell`]), in waves of nB + nF, the cells of a wave in
 /// parallel on `threads` workers (0: all cores): the pass of a merge, whose rows come from
 /// shards that each lacked sub-models (a whole run checks its cells as tasks of its graph).
-/// Returns how many cells came out lower.
-pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: usize) -> usize {
+/// Returns how many cells came out lower; an error, with `rows` untouched, when the system
+/// refused the workers ([`crate::pool::local`]).
+pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: usize) -> Result<usize> {
     let index: HashMap<RowKey, usize> = rows.iter().enumerate().map(|(i, r)| (r.key, i)).collect();
     let mut waves: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
     for (i, row) in rows.iter().enumerate().filter(|(_, r)| r.is_huber()) {
         waves.entry(row.key.nb + row.key.nf).or_default().push(i);
     }
-    let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(threads).build() else { return 0 };
+    let pool = crate::pool::local(threads, "for the nested check")?;
     let t0 = Instant::now();
     let judge = ctx.judge();
     let workspaces = Workspaces::new(ctx);
@@ -123,22 +125,27 @@ pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: us
     if let Some(p) = &ctx.profile {
         p.serial("nested", t0.elapsed().as_secs_f64());
     }
-    lowered
+    Ok(lowered)
 }
 
 /// [`nested_pass`] of rows computed by the `kernels` flavour (a merge's, on all cores): run
 /// only when this machine runs the same kernels, since refits on other kernels would mix two
 /// flavours in one table (README's promise for shards across CPUs). Returns the warning that
-/// says why it was not run.
-pub fn nested_pass_of_rows_from(kernels: &str, plan: &Plan, ctx: &Context, rows: &mut [CellRow]) -> Option<String> {
+/// says why it was not run, or the error of [`nested_pass`].
+pub fn nested_pass_of_rows_from(
+    kernels: &str,
+    plan: &Plan,
+    ctx: &Context,
+    rows: &mut [CellRow],
+) -> Result<Option<String>> {
     let here = crate::kernels::flavour().name();
     if kernels != here {
-        return Some(format!(
+        return Ok(Some(format!(
             "the nested pass (METHOD.md 5.6) was not run: the rows were computed with the {kernels} kernels and \
              this machine runs the {here} kernels; merge on a machine of the rows' kind for the table a whole \
              run gives"
-        ));
+        )));
     }
-    nested_pass(plan, ctx, rows, 0);
-    None
+    nested_pass(plan, ctx, rows, 0)?;
+    Ok(None)
 }

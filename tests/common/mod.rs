@@ -5,6 +5,18 @@ pub mod mat;
 
 use oesweep::oe;
 
+/// True under `CI=true`, where a test that cannot run on this machine is a failure rather than
+/// a skip: the CI machine is chosen to run them all.
+pub fn under_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true")
+}
+
+/// A test that cannot run here: says so and returns, or fails under `CI=true` ([`under_ci`]).
+pub fn cannot_run(why: &str) {
+    assert!(!under_ci(), "this test cannot run here (a failure under CI=true): {why}");
+    eprintln!("SKIPPED: {why}");
+}
+
 /// Deterministic uniform numbers in [0, 1) (64-bit LCG; only for test signals).
 pub struct Lcg(pub u64);
 impl Lcg {
