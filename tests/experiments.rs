@@ -239,17 +239,17 @@ fn bad_lists_name_the_record() {
     let u = binary_input(600, 3, 1.0, 5);
     write_csv(&dir.path().join("a.csv"), &u, &experiment(&u, 0.05, 6));
     let cases = [
-        (serde_json::json!([]), "data: an empty list"),
+        (serde_json::json!([]), "field 'data': an empty list"),
         (serde_json::json!([{"path": "a.csv", "ts": 1.0}, {"u": "u"}]), "'data[1].path': missing"),
         (serde_json::json!([{"path": "a.csv", "ts": 1.0}, {"path": "a.csv", "rows": [0, 5]}]), "'data[1].rows'"),
         (serde_json::json!([{"path": "a.csv", "ts": 1.0}, {"path": "a.csv", "ts": 2.0}]), "'data[1].ts'"),
         (
             serde_json::json!([{"path": "a.csv", "ts": 1.0}, {"path": "a.csv", "pth": 1}]),
-            "data[1]: unknown field `pth`",
+            "field 'data[1].pth': unknown field `pth`",
         ),
         (serde_json::json!([{"path": "a.csv", "ts": 1.0}, {"path": "missing.csv"}]), "missing.csv"),
         (serde_json::json!([{"path": "a.csv", "ts": 1.0}, {"path": "a.csv", "rows": [1, 3]}]), "3 samples are too few"),
-        (serde_json::json!("a.csv"), "data: expected a record"),
+        (serde_json::json!("a.csv"), "field 'data': invalid type: string \"a.csv\", expected a record"),
     ];
     for (i, (data, expect)) in cases.iter().enumerate() {
         let job = write_job(

@@ -3,7 +3,7 @@
 use crate::checkpoint;
 use crate::estimate::{HuberHessian, SolverMethod, SolverOptions};
 use crate::shard::Shard;
-use clap::{Args, Parser, Subcommand, ValueEnum};
+use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
@@ -56,12 +56,14 @@ pub struct ExportArgs {
     pub continuous: Option<crate::export::continuous::Method>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ExportFormat {
     Json,
     Matlab,
     Mat,
 }
+
+crate::names::names!(ExportFormat { Json = "json", Matlab = "matlab", Mat = "mat" });
 
 #[derive(Args, Debug)]
 pub struct MergeArgs {
@@ -205,7 +207,7 @@ pub struct FitArgs {
     #[arg(long, default_value_t = SolverOptions::default().ftol)]
     pub ftol: f64,
     /// Huber Hessian: exact Gauss-Newton (L1 rows weight 0) or IRLS (weight gamma/|e|).
-    #[arg(long, value_enum, default_value = "gauss-newton")]
+    #[arg(long, value_enum, default_value = "gauss_newton")]
     pub huber_hessian: HuberHessian,
     /// Solver: Levenberg-Marquardt over all parameters, or variable projection (F searched,
     /// b and the offset solved for).

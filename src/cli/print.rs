@@ -159,11 +159,14 @@ pub(super) fn print_layout(plan: &Plan, n: usize) {
     }
 }
 
+/// M1, M2 and the lead rule's pick, each with its score under the name of the fit column that
+/// ranked it (`fit_val`, `fit_band` or `fit`): the estimation fit `fit` is another number.
 pub(super) fn print_picks(selection: &reduce::Selection) {
+    let basis = selection.basis.column();
     for (label, pick) in [("M1 (W minima)  ", &selection.m1), ("M2 (L1C minima)", &selection.m2)] {
         match pick {
             Some(m) => outln!(
-                "{label} OE({}, {}) k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  fit = {}",
+                "{label} OE({}, {}) k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  {basis} = {}",
                 m.model.key.nb,
                 m.model.key.nf,
                 crate::text::k(m.model.k()),
@@ -184,7 +187,7 @@ pub(super) fn print_picks(selection: &reduce::Selection) {
             m.key.nf,
             m.key.delay,
             m.row.k.map_or(" (least squares)".to_string(), |k| format!(" k = {}", crate::text::k(k))),
-            selection.basis.column(),
+            basis,
             opt_pct(Some(m.score).filter(|v| v.is_finite()))
         ),
         None => outln!("pick ({}) none", rule.as_str()),

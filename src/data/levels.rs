@@ -18,7 +18,7 @@ use serde::Serialize;
 use super::Record;
 
 /// The job's `offset` setting.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Offset {
     #[default]
     Estimate,

@@ -115,11 +115,38 @@ impl Record {
 
 /// A column of a data file: its name (header name, Parquet column, MAT variable) or its
 /// 1-based position (a JSON integer in the job file; digits on the command line).
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
 #[serde(untagged)]
 pub enum ColumnRef {
     Position(usize),
     Name(String),
+}
+
+/// By hand rather than `untagged`, whose error names neither form.
+impl<'de> Deserialize<'de> for ColumnRef {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = ColumnRef;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a column name or a 1-based column index")
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> std::result::Result<ColumnRef, E> {
+                usize::try_from(v)
+                    .map(ColumnRef::Position)
+                    .map_err(|_| E::invalid_value(serde::de::Unexpected::Unsigned(v), &self))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> std::result::Result<ColumnRef, E> {
+                u64::try_from(v)
+                    .map_err(|_| E::invalid_value(serde::de::Unexpected::Signed(v), &self))
+                    .and_then(|v| self.visit_u64(v))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> std::result::Result<ColumnRef, E> {
+                Ok(ColumnRef::Name(v.to_string()))
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
 }
 
 impl ColumnRef {
@@ -167,21 +194,23 @@ impl Serialize for Header {
 
 impl<'de> Deserialize<'de> for Header {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        #[derive(Deserialize)]
-        #[serde(untagged)]
-        enum Raw {
-            Bool(bool),
-            Text(String),
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = Header;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("true, false or \"auto\"")
+            }
+            fn visit_bool<E: serde::de::Error>(self, v: bool) -> std::result::Result<Header, E> {
+                Ok(if v { Header::Yes } else { Header::No })
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> std::result::Result<Header, E> {
+                match v {
+                    "auto" => Ok(Header::Auto),
+                    _ => Err(E::invalid_value(serde::de::Unexpected::Str(v), &self)),
+                }
+            }
         }
-        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom("header: expected true, false or \"auto\""))? {
-            Raw::Bool(true) => Ok(Header::Yes),
-            Raw::Bool(false) => Ok(Header::No),
-            Raw::Text(t) if t == "auto" => Ok(Header::Auto),
-            Raw::Text(t) => Err(serde::de::Error::custom(format!(
-                "header: expected true, false or \"auto\", got \"{}\"",
-                one_line(&t)
-            ))),
-        }
+        d.deserialize_any(Visitor)
     }
 }
 

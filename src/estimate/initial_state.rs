@@ -20,7 +20,7 @@ use super::linalg::{cholesky, cholesky_solve};
 use crate::{kernels, oe};
 
 /// The initial state a fitted model is judged with (the job's `initial_state`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum InitialState {
     /// Fitted by least squares on the record being judged (the default).
     #[default]

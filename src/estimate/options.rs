@@ -2,8 +2,7 @@
 //! minimisation stopped ([`Termination`], a table column).
 
 /// How the Huber Hessian weights the L1 rows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HuberHessian {
     /// Exact Gauss-Newton Hessian of W: L1 rows get weight 0 (METHOD.md 3).
     GaussNewton,
@@ -11,9 +10,10 @@ pub enum HuberHessian {
     Irls,
 }
 
+crate::names::names!(HuberHessian { GaussNewton = "gauss_newton", Irls = "irls" });
+
 /// How the parameters are searched.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum SolverMethod {
     /// Levenberg-Marquardt over all of theta = [b, f, c].
     #[default]
@@ -22,6 +22,8 @@ pub enum SolverMethod {
     /// ([`super::separable`], METHOD.md 12).
     Separable,
 }
+
+crate::names::names!(SolverMethod { Lm = "lm", Separable = "separable" });
 
 /// Solver settings, also the job file's `solver` object (same names; absent fields take the
 /// defaults, unknown ones are refused; the ranges are checked by [`crate::job`]). Defaults are

@@ -11,6 +11,7 @@ use crate::estimate::InitialState;
 use crate::estimate::SolverOptions;
 
 mod inputs;
+mod parse;
 mod uncertainty;
 mod validate;
 
@@ -138,45 +139,66 @@ impl Serialize for Records {
     }
 }
 
-/// `data` or `validation` as an object or a list of objects, with the index of a bad record in
-/// the message (`data[1]: unknown field ...`).
-fn records_of(field: &str, v: serde_json::Value) -> std::result::Result<Records, String> {
-    match v {
-        serde_json::Value::Array(items) => {
-            let specs = items
-                .into_iter()
-                .enumerate()
-                .map(|(i, item)| DataSpec::deserialize(item).map_err(|e| format!("{field}[{i}]: {e}")))
-                .collect::<std::result::Result<Vec<_>, _>>()?;
-            if specs.is_empty() {
-                return Err(format!("{field}: an empty list; give one record {{ \"path\": ... }} or a list of them"));
+/// One record (an object) or a list of them; a bad record is named by its place
+/// (`data[1].rows`, [`parse`]).
+impl<'de> Deserialize<'de> for Records {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = Records;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a record {\"path\": ...} or a list of them")
             }
-            Ok(Records { specs, list: true })
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> std::result::Result<Records, A::Error> {
+                DataSpec::deserialize(serde::de::value::MapAccessDeserializer::new(map)).map(Records::one)
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<Records, A::Error> {
+                let mut specs = Vec::new();
+                while let Some(spec) = seq.next_element::<DataSpec>()? {
+                    specs.push(spec);
+                }
+                if specs.is_empty() {
+                    return Err(serde::de::Error::custom(
+                        "an empty list, expected one record {\"path\": ...} or a list of them",
+                    ));
+                }
+                Ok(Records { specs, list: true })
+            }
         }
-        v @ serde_json::Value::Object(_) => {
-            DataSpec::deserialize(v).map(Records::one).map_err(|e| format!("{field}: {e}"))
-        }
-        other => Err(format!("{field}: expected a record {{ \"path\": ... }} or a list of them, got {other}")),
-    }
-}
-
-fn data_records<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Records, D::Error> {
-    records_of("data", serde_json::Value::deserialize(d)?).map_err(serde::de::Error::custom)
-}
-
-fn validation_records<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Option<Records>, D::Error> {
-    match serde_json::Value::deserialize(d)? {
-        serde_json::Value::Null => Ok(None),
-        v => records_of("validation", v).map(Some).map_err(serde::de::Error::custom),
+        d.deserialize_any(Visitor)
     }
 }
 
 /// k values: an explicit list or a generated range.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, PartialEq)]
 #[serde(untagged)]
 pub enum KGrid {
     List(Vec<f64>),
     Range(KRange),
+}
+
+/// By hand rather than `untagged`, whose error names neither form ([`parse`]).
+impl<'de> Deserialize<'de> for KGrid {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = KGrid;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a list of k values [k1, k2, ...] or a range {\"from\": a, \"to\": b, \"count\": n}")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> std::result::Result<KGrid, A::Error> {
+                KRange::deserialize(serde::de::value::MapAccessDeserializer::new(map)).map(KGrid::Range)
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<KGrid, A::Error> {
+                let mut ks = Vec::new();
+                while let Some(k) = seq.next_element::<f64>()? {
+                    ks.push(k);
+                }
+                Ok(KGrid::List(ks))
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -189,13 +211,14 @@ pub struct KRange {
     pub spacing: Spacing,
 }
 
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Spacing {
     #[default]
     Linear,
     Log,
 }
+
+crate::names::names!(Spacing { Linear = "linear", Log = "log" });
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -240,10 +263,9 @@ const MIN_EXPLORE_ROWS: usize = 1000;
 pub struct Job {
     pub name: String,
     /// The estimation record, or a list of records (experiments).
-    #[serde(deserialize_with = "data_records")]
     pub data: Records,
     /// The validation record, or a list of records.
-    #[serde(default, deserialize_with = "validation_records")]
+    #[serde(default)]
     pub validation: Option<Records>,
     /// One input delay for the whole grid (shorthand of `grid.delay` = [d, d]).
     #[serde(default)]
@@ -392,10 +414,7 @@ pub fn from_text(path: &Path, text: &str) -> Result<ValidJob> {
     {
         return Err(Error::input(path, "invalid job: the file must hold one JSON object { ... }"));
     }
-    // serde quotes unknown keys and variants verbatim: escape control characters so the
-    // message stays the one line the CLI promises.
-    let job: Job = serde_json::from_str(text)
-        .map_err(|e| Error::input(path, format!("invalid job: {}", data::one_line(&e.to_string()))))?;
+    let job: Job = parse::from_text(text).map_err(|e| Error::input(path, format!("invalid job: {e}")))?;
     let job = resolve_validation(validate(path, job)?)?;
     Ok(ValidJob::of_normalised(path, job))
 }
@@ -416,7 +435,7 @@ pub fn read_as_run(path: &Path) -> Result<(ValidJob, Option<String>)> {
     for (field, paper) in [("offset", "none"), ("initial_state", "zero"), ("spectrum", "welch")] {
         obj.entry(field).or_insert_with(|| paper.into());
     }
-    let mut job: Job = serde_json::from_value(v).map_err(|e| bad(e.to_string()))?;
+    let mut job: Job = parse::from_value(v).map_err(bad)?;
     let folder = path.parent().unwrap_or(Path::new("."));
     let resolve = |p: &Path| if p.is_absolute() { p.to_path_buf() } else { folder.join(p) };
     for spec in job.data.specs.iter_mut().chain(job.validation.iter_mut().flat_map(|v| v.specs.iter_mut())) {

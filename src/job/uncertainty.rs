@@ -15,8 +15,7 @@ pub struct Uncertainty {
     pub seed: u64,
 }
 
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum UncertaintyMethod {
     /// The sandwich covariance at the fit only.
     #[default]
@@ -24,6 +23,8 @@ pub enum UncertaintyMethod {
     /// The bootstrap of the whole estimation of the watched picks besides.
     Bootstrap,
 }
+
+crate::names::names!(UncertaintyMethod { Local = "local", Bootstrap = "bootstrap" });
 
 impl Default for Uncertainty {
     fn default() -> Self {
@@ -50,30 +51,34 @@ struct UncertaintyObject {
     seed: Option<u64>,
 }
 
+/// A name or an object, said so in the error of anything else ([`super::parse`]).
 impl<'de> Deserialize<'de> for Uncertainty {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        use serde::de::Error as _;
-        let v = serde_json::Value::deserialize(d)?;
-        let o = match v {
-            v @ serde_json::Value::String(_) => {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = UncertaintyObject;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("\"local\", \"bootstrap\" or {\"method\": \"bootstrap\", \"replicates\": B, \"seed\": S}")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> std::result::Result<UncertaintyObject, E> {
                 let method =
-                    UncertaintyMethod::deserialize(v).map_err(|e| D::Error::custom(format!("uncertainty: {e}")))?;
-                UncertaintyObject { method, replicates: None, seed: None }
+                    UncertaintyMethod::from_name(v).ok_or_else(|| E::unknown_variant(v, UncertaintyMethod::NAMES))?;
+                Ok(UncertaintyObject { method, replicates: None, seed: None })
             }
-            v @ serde_json::Value::Object(_) => {
-                UncertaintyObject::deserialize(v).map_err(|e| D::Error::custom(format!("uncertainty: {e}")))?
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> std::result::Result<UncertaintyObject, A::Error> {
+                let o = UncertaintyObject::deserialize(serde::de::value::MapAccessDeserializer::new(map))?;
+                if o.method == UncertaintyMethod::Local && (o.replicates.is_some() || o.seed.is_some()) {
+                    return Err(serde::de::Error::custom(
+                        "'replicates' and 'seed' are settings of the method \"bootstrap\"",
+                    ));
+                }
+                Ok(o)
             }
-            other => {
-                return Err(D::Error::custom(format!(
-                    "uncertainty: expected \"local\", \"bootstrap\" or {{\"method\": \"bootstrap\", \"replicates\": B, \"seed\": S}}, got {other}"
-                )));
-            }
-        };
-        if o.method == UncertaintyMethod::Local && (o.replicates.is_some() || o.seed.is_some()) {
-            return Err(D::Error::custom(
-                "uncertainty: 'replicates' and 'seed' are settings of the method \"bootstrap\"",
-            ));
         }
+        let o = d.deserialize_any(Visitor)?;
         let d = Uncertainty::default();
         Ok(Uncertainty {
             method: o.method,

@@ -60,8 +60,7 @@ pub const DEFAULT_MIN_TOLERANCE: f64 = 1e-3;
 pub const DEFAULT_FIT_TOLERANCE: f64 = 0.05;
 
 /// Which fit column ranks the candidate models.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FitBasis {
     /// `fit_val`: time-domain fit on the validation record.
     Validation,
@@ -70,6 +69,8 @@ pub enum FitBasis {
     /// `fit`: time-domain fit on the estimation record (optimistic; the last resort).
     Estimation,
 }
+
+crate::names::names!(FitBasis { Validation = "validation", Band = "band", Estimation = "estimation" });
 
 impl FitBasis {
     /// The row's fit in this basis, if it has one.

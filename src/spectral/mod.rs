@@ -46,7 +46,7 @@ use crate::oe::freq_response;
 use std::f64::consts::PI;
 
 /// Which nonparametric estimate judges models (`fit_band`) and is drawn in the report.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum SpectrumMethod {
     /// Welch of the record with its output's spikes cleaned out first ([`clean`]).
     #[default]
