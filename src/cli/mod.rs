@@ -260,7 +260,7 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
     outln!("grid       {}", describe_grid(&p));
     outln!("cells      {} Huber cells + {} least-squares fits", j.n_cells(), j.n_pairs());
     outln!("start      {}", j.job.start.as_str());
-    outln!("ranking    by {:?} fit", p.ranking());
+    outln!("ranking    by the {} (`{}`)", p.ranking().describe(), p.ranking().column());
     outln!("output     {}", j.output().display());
     for w in &p.inputs.warnings {
         eprintln!("warning: {w}");
