@@ -46,6 +46,15 @@ SWEEP_JOB = {
 SELECTION_KEYS = ("rule", "m1", "m2", "picks")
 
 
+def frozen_selection(selection):
+    """What reference.json keeps of a selection.json: the picks, and M1 and M2 without the
+    lists of candidates they were chosen from."""
+    kept = {k: selection[k] for k in SELECTION_KEYS}
+    for k in ("m1", "m2"):
+        kept[k] = {key: v for key, v in kept[k].items() if key != "candidates"}
+    return kept
+
+
 def main(binary):
     commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=REPO).stdout.strip()
     dirty = subprocess.run(["git", "status", "--porcelain", "--", "src"], capture_output=True, text=True,
@@ -65,7 +74,7 @@ def main(binary):
         "about": "Made by python/tests/freeze_reference.py with the cargo-built oesweep binary of commit "
                  f"{commit}{' (with changes to src/)' if dirty else ''}; read by test_estimates.py.",
         "fits": fits,
-        "sweep": {"job": SWEEP_JOB, "selection": {k: selection[k] for k in SELECTION_KEYS}},
+        "sweep": {"job": SWEEP_JOB, "selection": frozen_selection(selection)},
     }
     OUT.write_text(json.dumps(doc, indent=1) + "\n")
 

@@ -10,6 +10,7 @@ import polars as pl
 import pytest
 
 import oesweep
+from freeze_reference import frozen_selection
 from support import REPO, TRUE_B, TRUE_F, TRUE_OFFSET, cargo_bin, record, without_seconds
 
 REFERENCE = Path(__file__).with_name("reference.json")
@@ -143,9 +144,7 @@ def test_sweep_gives_the_picks_frozen_from_the_cargo_binary(tmp_path):
     ref = reference()["sweep"]
     job = json.loads(json.dumps(ref["job"]).replace("REPO/", f"{REPO}/"))
     s = oesweep.sweep({**job, "output": str(tmp_path / "out")}, progress=False)
-    close(s.selection["picks"], ref["selection"]["picks"], "picks")
-    for key in ("m1", "m2", "rule"):
-        close(s.selection[key], ref["selection"][key], key)
+    close(frozen_selection(s.selection), ref["selection"], "selection")
 
 
 def test_the_frozen_numbers_are_what_the_cargo_binary_gives_now(tmp_path):
@@ -162,5 +161,4 @@ def test_the_frozen_numbers_are_what_the_cargo_binary_gives_now(tmp_path):
     o = subprocess.run([binary, "run", str(tmp_path / "job.json"), "--quiet"], capture_output=True, text=True)
     assert o.returncode == 0, o.stderr
     selection = json.loads((tmp_path / "out" / "selection.json").read_text())
-    for key in ref["sweep"]["selection"]:
-        close(selection[key], ref["sweep"]["selection"][key], key)
+    close(frozen_selection(selection), ref["sweep"]["selection"], "selection")
