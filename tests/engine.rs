@@ -118,6 +118,38 @@ fn a_watched_run_stops_on_the_callers_switch_and_counts_its_cells() {
     assert!(table(&dir.path().join("out")) == expected, "the watched table differs from the uninterrupted one");
 }
 
+/// A caller told of each finished cell (the Python package's progress callback) that stops the
+/// run on the first message: the worker cannot run ahead of it, so the run stops within the
+/// first pair's cells and one more, never at its end, and the same call resumes to the
+/// uninterrupted table.
+#[test]
+fn a_caller_told_of_each_cell_stops_the_run_within_the_cells_it_was_told_of() {
+    use std::sync::atomic::Ordering;
+    let dir = tempfile::tempdir().unwrap();
+    let expected = reference(dir.path());
+    let job = job(dir.path(), "out");
+    // Capacity 0: each message waits until the caller takes it.
+    let (tx, rx) = std::sync::mpsc::sync_channel(0);
+    let watch = engine::Watch { finished: Some(tx), ..Default::default() };
+    let stop = watch.stop.clone();
+    let opts = RunOptions { threads: 1, watch: Some(watch), ..whole() };
+    let o = std::thread::scope(|s| {
+        // The thread owns the options (and so the sender), which go when the run returns.
+        let job = job.clone();
+        let run = s.spawn(move || engine::run(&job, &opts, &|_| {}).unwrap());
+        rx.recv().expect("a first finished cell");
+        stop.store(true, Ordering::Relaxed);
+        // The cells in flight, until the channel closes.
+        assert!(rx.iter().count() <= KS);
+        run.join().unwrap()
+    });
+    assert!(matches!(o.end, RunEnd::Interrupted), "{o:?}");
+    assert!(o.finished >= 1 && o.finished <= KS + 1, "{} cells finished after the stop", o.finished);
+    let o = engine::run(&job, &whole(), &|_| {}).unwrap();
+    assert_eq!((o.resumed + o.computed, o.finished), (PAIRS * KS, PAIRS * KS));
+    assert!(table(&dir.path().join("out")) == expected, "the resumed table differs from the uninterrupted one");
+}
+
 /// `--profile`: every minimisation is counted by its role, the counts do not depend on the
 /// thread count (each pair is one sequential task), they hold at least the iterations the table
 /// reports (the winners'), and an unprofiled run carries no profile.

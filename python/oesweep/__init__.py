@@ -68,6 +68,14 @@ def _scipy_signal():
     return scipy.signal
 
 
+def _control():
+    try:
+        import control
+    except ImportError as e:
+        raise ImportError("this needs the python-control package: pip install 'oesweep[control]'") from e
+    return control
+
+
 class Model:
     """An OE model ``y = q^-delay B(q^-1)/F(q^-1) (u - input_level) + offset``.
 
@@ -132,15 +140,11 @@ class Model:
             return dlti(num, den, dt=float(self.ts))
 
     def to_control(self):
-        """A python-control ``TransferFunction`` with ``dt = ts``."""
-        try:
-            import control
-        except ImportError as e:
-            raise ImportError(
-                "Model.to_control needs the python-control package: pip install 'oesweep[control]'"
-            ) from e
+        """A python-control ``TransferFunction`` with ``dt = ts``. Needs python-control."""
+        tf = _control().tf
+
         num, den = self.num_den
-        return control.tf(num, den, float(self.ts))
+        return tf(num, den, float(self.ts))
 
     def to_continuous(self, method: str = "zoh") -> "ContinuousModel":
         """The continuous-time equivalent for control design, as ``oesweep export --continuous``
@@ -211,20 +215,16 @@ class ContinuousModel:
 
     def to_scipy(self):
         """``scipy.signal.lti(num, den)``: without the dead time ``input_delay``, which scipy's
-        systems do not hold."""
-        from scipy.signal import lti
+        systems do not hold. Needs scipy."""
+        lti = _scipy_signal().lti
 
         return lti(self.num, self.den)
 
     def to_control(self):
         """A continuous python-control ``TransferFunction``: without the dead time
         ``input_delay``, which python-control's ``tf`` does not hold (``control.pade`` gives a
-        rational approximation to multiply in)."""
-        try:
-            import control
-        except ImportError as e:
-            raise ImportError("ContinuousModel.to_control needs the python-control package: pip install control") from e
-        return control.tf(self.num, self.den)
+        rational approximation to multiply in). Needs python-control."""
+        return _control().tf(self.num, self.den)
 
     def __repr__(self) -> str:
         return (f"ContinuousModel({self.method}, order {len(self.den) - 1}, "
@@ -396,7 +396,10 @@ def sweep(
 
     ``progress``: ``True`` draws the engine's bar on a terminal and a plain updating line
     elsewhere (a notebook); ``False`` is silent; a callable is called as ``progress(done,
-    total)`` (Huber cells) about ten times a second and once at the end.
+    total)`` (Huber cells) on the calling thread as cells finish (those that finish together
+    in one call) and once at the end. The workers never run more than 32 finished cells ahead
+    of it, so an exception it raises stops the run as Ctrl-C does, within those cells and the
+    ones in flight.
 
     Ctrl-C raises ``KeyboardInterrupt`` once the cells in flight are saved (well within a
     second); the checkpoint stays in the output folder and the same call resumes. ``force``

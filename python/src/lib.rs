@@ -15,6 +15,7 @@ use pyo3::types::PyBytes;
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
+use std::sync::mpsc::{RecvTimeoutError, TryRecvError};
 use std::time::Duration;
 
 create_exception!(_oesweep, JobError, PyValueError, "A job, a setting or a results folder that is wrong.");
@@ -89,16 +90,25 @@ fn fit(
     serde_json::to_string(&report).map_err(|e| PyRuntimeError::new_err(e.to_string()))
 }
 
-/// How often a running sweep looks at Python's signals and calls the progress callback.
+/// How often a running sweep looks at Python's signals (and calls the progress callback) while
+/// no cell finishes.
 const POLL: Duration = Duration::from_millis(100);
+
+/// Finished cells the engine's workers may report ahead of the calling thread, which takes
+/// each report before it calls the progress callback: beyond this a worker waits (before its
+/// next cell) until the thread has caught up. A slow callback or a wait for the GIL costs the
+/// workers nothing below it, and a stop raised by the callback lands within it.
+const AHEAD: usize = 32;
 
 /// Run a job (`oesweep run`): the job file `job`, or, with `text`, the job given as JSON text
 /// that `job` only names and locates relative paths from (nothing is written for it); returns
 /// the results folder. The engine runs on a thread of its own while this one, without the GIL,
-/// wakes every [`POLL`] to let Python handle its signals and to call `on_progress(done,
-/// total)`: Ctrl-C (or any exception the callback raises) stops the run with the checkpoint
-/// kept and is raised here once the cells in flight are saved, so the same call resumes.
-/// Python's own SIGINT handler stays in place.
+/// waits for it and lets Python handle its signals every [`POLL`]. With `on_progress`, the
+/// engine tells this thread of every finished cell and `on_progress(done, total)` is called
+/// as cells finish (those that finish together in one call) and once at the end, its workers
+/// never more than [`AHEAD`] cells ahead of it. Ctrl-C (or any exception the callback raises)
+/// stops the run with the checkpoint kept and is raised here once the cells in flight are
+/// saved, so the same call resumes. Python's own SIGINT handler stays in place.
 #[pyfunction]
 #[pyo3(signature = (job, text=None, threads=None, progress=true, force=false, on_progress=None))]
 #[allow(clippy::too_many_arguments)]
@@ -112,7 +122,11 @@ fn run(
     on_progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
     let watch = Watch::default();
-    let mut opts = RunOptions { quiet: !progress, force, watch: Some(watch.clone()), ..RunOptions::default() };
+    // Reports of finished cells (only when someone listens) and the engine's end: the engine's
+    // thread owns every sender, so the channel closes when the engine returns or panics.
+    let (report, reports) = std::sync::mpsc::sync_channel::<()>(AHEAD);
+    let engine_watch = Watch { finished: on_progress.is_some().then(|| report.clone()), ..watch.clone() };
+    let mut opts = RunOptions { quiet: !progress, force, watch: Some(engine_watch), ..RunOptions::default() };
     if let Some(t) = threads {
         opts.threads = t;
     }
@@ -126,21 +140,36 @@ fn run(
         })
     };
     let (outcome, raised) = py.detach(|| {
+        // Owned here: a receiver may not be shared between threads.
+        let reports = reports;
         std::thread::scope(|s| {
-            // The engine says when it ends, so the call returns at once rather than at the next poll.
-            let (ended, end) = std::sync::mpsc::channel::<()>();
-            let (job, text, opts) = (&job, &text, &opts);
+            let (job, text) = (&job, &text);
             let engine = s.spawn(move || {
-                let outcome = match text {
-                    Some(text) => engine::run_text(job, text, opts, &|_| {}),
-                    None => engine::run(job, opts, &|_| {}),
-                };
-                let _ = ended.send(());
-                outcome
+                // Dropped, with the options' clone, when the engine returns: the channel closes.
+                let _report = report;
+                match text {
+                    Some(text) => engine::run_text(job, text, &opts, &|_| {}),
+                    None => engine::run(job, &opts, &|_| {}),
+                }
             });
             let mut raised = None;
-            // A panicking engine drops `ended` without sending: Disconnected ends the wait too.
-            while let Err(std::sync::mpsc::RecvTimeoutError::Timeout) = end.recv_timeout(POLL) {
+            loop {
+                let ended = match reports.recv_timeout(POLL) {
+                    Err(RecvTimeoutError::Disconnected) => true,
+                    Err(RecvTimeoutError::Timeout) => false,
+                    // Reports that came together make one call.
+                    Ok(()) => loop {
+                        match reports.try_recv() {
+                            Ok(()) => {}
+                            Err(TryRecvError::Empty) => break false,
+                            Err(TryRecvError::Disconnected) => break true,
+                        }
+                    },
+                };
+                if ended {
+                    break;
+                }
+                // Once raised, the thread only takes the reports of the cells in flight.
                 if raised.is_none()
                     && let Err(e) = poll()
                 {
@@ -204,15 +233,17 @@ fn export(py: Python<'_>, folder: PathBuf, pick: Option<&str>) -> PyResult<Strin
 /// with "mat" written to `out` as a MAT-file; returns the text ("" for "mat").
 #[pyfunction]
 #[pyo3(signature = (doc, to, out=None))]
-fn write_model(doc: &str, to: &str, out: Option<PathBuf>) -> PyResult<String> {
-    let model = oesweep::export::model::ModelOut::from_json_text(doc).map_err(JobError::new_err)?;
-    match (to, out) {
-        ("json", _) => Ok(model.to_json_text()),
-        ("matlab", _) => Ok(model.to_matlab()),
-        ("mat", Some(out)) => model.write_mat(&out).map(|_| String::new()).map_err(to_py),
-        ("mat", None) => Err(JobError::new_err("to=\"mat\" writes a binary file: give its path")),
-        (other, _) => Err(JobError::new_err(format!("to {other:?}: expected json, matlab or mat"))),
-    }
+fn write_model(py: Python<'_>, doc: &str, to: &str, out: Option<PathBuf>) -> PyResult<String> {
+    py.detach(|| {
+        let model = oesweep::export::model::ModelOut::from_json_text(doc).map_err(JobError::new_err)?;
+        match (to, out) {
+            ("json", _) => Ok(model.to_json_text()),
+            ("matlab", _) => Ok(model.to_matlab()),
+            ("mat", Some(out)) => model.write_mat(&out).map(|_| String::new()).map_err(to_py),
+            ("mat", None) => Err(JobError::new_err("to=\"mat\" writes a binary file: give its path")),
+            (other, _) => Err(JobError::new_err(format!("to {other:?}: expected json, matlab or mat"))),
+        }
+    })
 }
 
 /// The continuous-time equivalent (`oesweep export --continuous`) of a model document (`oesweep
@@ -220,11 +251,13 @@ fn write_model(doc: &str, to: &str, out: Option<PathBuf>) -> PyResult<String> {
 /// `den` (descending powers of s), `input_delay` (seconds), `delay_samples`. A model without
 /// an equivalent raises ValueError naming the pole.
 #[pyfunction]
-fn to_continuous(doc: &str, method: &str) -> PyResult<String> {
-    let model = oesweep::export::model::ModelOut::from_json_text(doc).map_err(JobError::new_err)?;
-    let method = method.parse::<oesweep::export::continuous::Method>().map_err(JobError::new_err)?;
-    let c = model.to_continuous(method).map_err(|e| PyValueError::new_err(e.to_string()))?;
-    serde_json::to_string(&c).map_err(|e| PyRuntimeError::new_err(e.to_string()))
+fn to_continuous(py: Python<'_>, doc: &str, method: &str) -> PyResult<String> {
+    py.detach(|| {
+        let model = oesweep::export::model::ModelOut::from_json_text(doc).map_err(JobError::new_err)?;
+        let method = method.parse::<oesweep::export::continuous::Method>().map_err(JobError::new_err)?;
+        let c = model.to_continuous(method).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        serde_json::to_string(&c).map_err(|e| PyRuntimeError::new_err(e.to_string()))
+    })
 }
 
 /// The u and y columns of a data file named as a job file names a record (JSON text of its

@@ -1,16 +1,14 @@
 """The Python package against its own `oesweep` command (the wheel's console script, or
-OESWEEP_BIN), that command against the binary cargo builds from the same checkout
-(OESWEEP_CARGO_BIN), and the model's forms against scipy."""
+OESWEEP_BIN: the same native module, so these check the Python layer), that command against the
+binary cargo builds from the same checkout (OESWEEP_CARGO_BIN), and the model's forms against
+scipy. test_estimates.py holds the numbers to references the package did not make,
+test_host.py what the package does to its process."""
 
 import json
-import os
 import re
-import shutil
 import subprocess
-import signal
 import sys
-import textwrap
-import time
+from importlib.metadata import metadata
 from pathlib import Path
 
 import numpy as np
@@ -19,31 +17,7 @@ import pytest
 import scipy.signal
 
 import oesweep
-
-BIN = os.environ.get("OESWEEP_BIN") or shutil.which("oesweep")
-CARGO_BIN = os.environ.get("OESWEEP_CARGO_BIN")
-
-
-def record(n=1500, seed=3, spikes=0.05):
-    """An OE(2,2) system with noise and spikes, as numpy arrays."""
-    rng = np.random.default_rng(seed)
-    u = np.repeat(rng.choice([-1.0, 1.0], n // 3 + 1), 3)[:n]
-    b, f = [0.5, 0.3], [-1.2, 0.6]
-    y = scipy.signal.lfilter([0.0] + b, [1.0] + f, u)
-    y = y + 0.05 * rng.standard_normal(n) + np.where(rng.random(n) < spikes, 2.0, 0.0) + 0.3
-    return u, y
-
-
-def write_csv(path, u, y):
-    with open(path, "w") as fh:
-        fh.write("u,y\n")
-        for a, b in zip(u, y):
-            fh.write(f"{float(a)!r},{float(b)!r}\n")
-
-
-def cli(*args):
-    assert BIN, "set OESWEEP_BIN to the oesweep binary of this checkout"
-    return subprocess.run([BIN, *args], capture_output=True, text=True)
+from support import BIN, cargo_bin, cli, job_for, record, without_seconds, write_csv
 
 
 def test_fit_equals_the_command_line_bit_for_bit(tmp_path):
@@ -58,9 +32,6 @@ def test_fit_equals_the_command_line_bit_for_bit(tmp_path):
                 "resid_white_p", "resid_indep_p", "raic", "rbic", "sigma", "input_level"):
         assert got[key] == want[key], key
     assert got["least_squares"]["b"] == want["ls"]["b"]
-    # Any dtype and contiguity, pandas/polars Series included.
-    assert oesweep.fit(pl.Series(u), y[::-1][::-1], 2, 2, 0.5, ts=0.01).b == m.b
-    assert oesweep.fit(u.astype(np.float32).astype(np.float64), y, 2, 2, 0.5, ts=0.01).b == m.b
     assert "OE(2, 2)" in repr(m)
 
 
@@ -84,16 +55,6 @@ def test_the_model_simulates_and_responds_like_scipy(tmp_path):
         g = m.to_control()
         assert g.dt == 0.01
         np.testing.assert_allclose(g(np.exp(2j * np.pi * freq * 0.01)), m.frequency_response(freq), rtol=1e-9)
-
-
-def job_for(tmp_path, u, y, out="out"):
-    write_csv(tmp_path / "d.csv", u, y)
-    return {
-        "name": "py",
-        "data": {"path": str(tmp_path / "d.csv"), "u": "u", "y": "y", "ts": 0.01},
-        "grid": {"nb": [1, 3], "nf": [1, 3], "k": [0.5, 1.5]},
-        "output": str(tmp_path / out),
-    }
 
 
 def test_sweep_gives_the_table_and_picks_of_oesweep_run_and_load_reads_it(tmp_path):
@@ -135,54 +96,6 @@ def test_load_reads_a_run_merged_from_shards(tmp_path):
     assert merged.m2.b == single.m2.b and merged.selection["picks"] == single.selection["picks"]
 
 
-# A Python thread feeds a named pipe that the engine reads: it can only do so while the call
-# has released the GIL, so a call that held it would wait forever for its input. Run in a child
-# process, whose timeout only turns that deadlock into a failure (a passing run needs a few
-# seconds of it).
-GIL_CHILD = textwrap.dedent(
-    """
-    import json, os, sys, threading
-    import oesweep
-
-    folder, csv, job = sys.argv[1], sys.argv[2], sys.argv[3]
-
-    def feed(fifo, text):
-        def write():
-            with open(fifo, "w") as fh:
-                fh.write(text)
-        os.mkfifo(fifo)
-        t = threading.Thread(target=write)
-        t.start()
-        return t
-
-    # A data file (read by one engine call) and a job file (read by the engine's thread of a sweep).
-    t = feed(os.path.join(folder, "fifo.csv"), csv)
-    u, y = oesweep.read(os.path.join(folder, "fifo.csv"))
-    t.join()
-    t = feed(os.path.join(folder, "fifo-job.json"), job)
-    s = oesweep.sweep(os.path.join(folder, "fifo-job.json"), progress=False, threads=1)
-    t.join()
-    print(json.dumps({"n": len(u), "y0": y[0], "cells": s.cells.height}))
-    """
-)
-
-
-def test_a_python_thread_runs_while_the_engine_works(tmp_path):
-    u, y = record(300)
-    write_csv(tmp_path / "d.csv", u, y)
-    job = job_for(tmp_path, u, y)
-    try:
-        o = subprocess.run(
-            [sys.executable, "-c", GIL_CHILD, str(tmp_path), (tmp_path / "d.csv").read_text(), json.dumps(job)],
-            capture_output=True, text=True, timeout=300,
-        )
-    except subprocess.TimeoutExpired:
-        pytest.fail("a call into the engine held the GIL: the thread feeding its input never ran")
-    assert o.returncode == 0, o.stderr
-    got = json.loads(o.stdout)
-    assert got["n"] == 300 and got["y0"] == y[0] and got["cells"] > 0
-
-
 def test_bad_inputs_raise_the_typed_errors_and_write_nothing(tmp_path):
     u, y = record()
     y_nan = y.copy()
@@ -208,41 +121,6 @@ def test_the_readme_quick_start_runs(tmp_path, monkeypatch):
     src = Path(__file__).parent.parent / "examples" / "quickstart.py"
     exec(compile(src.read_text(), str(src), "exec"), {"__name__": "__main__"})
     assert (tmp_path / "qs-out" / "cells.parquet").is_file()
-
-
-def test_ctrl_c_raises_keyboard_interrupt_keeps_the_checkpoint_and_the_same_call_resumes(tmp_path):
-    u, y = record(3000)
-    job = job_for(tmp_path, u, y, "interrupted")
-    job["grid"] = {"nb": [1, 5], "nf": [1, 5], "k": {"from": 0.1, "to": 2.0, "count": 6, "spacing": "log"}}
-    calls = []
-
-    def ctrl_c(done, total):
-        # A real SIGINT, sent the first time the engine reports a finished cell (or, should the
-        # run end between two polls, at its last report): Python's own handler must see it.
-        calls.append((done, total))
-        if done > 0 and len([c for c in calls if c[0] > 0]) == 1:
-            os.kill(os.getpid(), signal.SIGINT)
-
-    with pytest.raises(KeyboardInterrupt):
-        oesweep.sweep(job, progress=ctrl_c, threads=1)
-    out = tmp_path / "interrupted"
-    if not (out / "selection.json").exists():
-        # Stopped mid-run: the finished cells are in the checkpoint, and no result file.
-        assert any((out / "parts").iterdir())
-        assert not (out / "cells.parquet").exists()
-    seen = []
-    resumed = oesweep.sweep(job, progress=lambda d, t: seen.append((d, t)), threads=2)
-    whole = oesweep.sweep(job, output=tmp_path / "whole", progress=False)
-    assert resumed.cells.drop("seconds").equals(whole.cells.drop("seconds"))
-    assert resumed.selection == whole.selection
-    # The progress callback ends on every cell done, after a Ctrl-C as without one.
-    assert seen[-1][0] == seen[-1][1] == resumed.cells.filter(pl.col("k").is_not_null()).height
-    # Python's SIGINT handling is Python's again: a Ctrl-C after the sweep is a plain
-    # KeyboardInterrupt, not an exit of the process.
-    with pytest.raises(KeyboardInterrupt):
-        os.kill(os.getpid(), signal.SIGINT)
-        for _ in range(100):
-            time.sleep(0.01)
 
 
 def test_progress_in_a_notebook_is_one_updating_line(tmp_path, monkeypatch, capsys):
@@ -393,6 +271,23 @@ def test_the_zoh_equivalent_is_scipys_matrix_logarithm():
     )
 
 
+def test_a_method_whose_package_is_missing_names_the_extra_that_brings_it(monkeypatch):
+    m = lightly_damped()
+    c = m.to_continuous("tustin")
+    extras = metadata("oesweep").get_all("Provides-Extra")
+    assert "scipy" in extras and "control" in extras
+    # None in sys.modules: the import raises ImportError, as without the package.
+    for name in ("scipy", "scipy.signal"):
+        monkeypatch.setitem(sys.modules, name, None)
+    for call in (lambda: m.simulate([1.0, 0.0]), m.to_scipy, c.to_scipy):
+        with pytest.raises(ImportError, match=r"pip install 'oesweep\[scipy\]'"):
+            call()
+    monkeypatch.setitem(sys.modules, "control", None)
+    for call in (m.to_control, c.to_control):
+        with pytest.raises(ImportError, match=r"python-control package: pip install 'oesweep\[control\]'"):
+            call()
+
+
 def test_models_without_a_continuous_equivalent_say_which_pole():
     m = oesweep.Model({"b": [1.0], "f": [0.5], "delay": 1, "ts": 0.1})
     with pytest.raises(ValueError, match=r"z = -0\.5.*negative real axis"):
@@ -515,22 +410,13 @@ def test_errors_come_by_kind_with_the_command_lines_message(tmp_path):
     same_as_cli(e, "run", str(tmp_path / "bad-job.json"), "--quiet", code=2)
 
 
-def without_seconds(text):
-    """A `--json` report without its timing, which is the only field two runs may differ in."""
-    doc = json.loads(text)
-    doc.pop("seconds", None)
-    return doc
-
-
 def test_the_command_behaves_as_the_binary_cargo_builds(tmp_path):
-    if not CARGO_BIN:
-        assert os.environ.get("CI") != "true", "OESWEEP_CARGO_BIN is not set"
-        pytest.skip("OESWEEP_CARGO_BIN (the cargo-built binary) is not set")
+    cargo = cargo_bin()
     u, y = record()
     write_csv(tmp_path / "d.csv", u, y)
     (tmp_path / "job.json").write_text(json.dumps(job_for(tmp_path, u, y, "run-OUT")))
     runs = {}
-    for name, binary in (("wheel", BIN), ("cargo", CARGO_BIN)):
+    for name, binary in (("wheel", BIN), ("cargo", cargo)):
         def run(*args):
             return subprocess.run([binary, *args], capture_output=True, text=True, cwd=tmp_path)
 
@@ -553,26 +439,3 @@ def test_the_command_behaves_as_the_binary_cargo_builds(tmp_path):
     wheel_run, cargo_run = oesweep.load(tmp_path / "run-wheel"), oesweep.load(tmp_path / "run-cargo")
     assert wheel_run.cells.drop("seconds").equals(cargo_run.cells.drop("seconds"))
     assert wheel_run.selection == cargo_run.selection
-
-
-def test_ctrl_c_stops_the_command_resumably(tmp_path):
-    u, y = record(3000)
-    job = job_for(tmp_path, u, y, "stopped")
-    job["grid"] = {"nb": [1, 6], "nf": [1, 6], "k": {"from": 0.1, "to": 2.0, "count": 10, "spacing": "log"}}
-    (tmp_path / "job.json").write_text(json.dumps(job))
-    args = [BIN, "run", str(tmp_path / "job.json"), "--quiet", "--threads", "1", "--checkpoint-every", "0.01"]
-    p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    parts = tmp_path / "stopped" / "parts"
-    # Ctrl-C once the first finished cells are saved (the engine's handler is in place then).
-    while p.poll() is None and not (parts.is_dir() and any(parts.glob("*.parquet"))):
-        time.sleep(0.01)
-    p.send_signal(signal.SIGINT)
-    out, err = p.communicate()
-    assert p.returncode in (0, 130), err  # 0: the run ended before the signal came
-    if p.returncode == 130:
-        assert "interrupted:" in err and "to resume, run `oesweep run" in err and "Traceback" not in err
-        assert not (tmp_path / "stopped" / "cells.parquet").exists()
-    o = subprocess.run(args[:-2], capture_output=True, text=True)
-    assert o.returncode == 0, o.stderr
-    whole = oesweep.sweep(job, output=tmp_path / "whole", progress=False)
-    assert oesweep.load(tmp_path / "stopped").cells.drop("seconds").equals(whole.cells.drop("seconds"))

@@ -34,6 +34,7 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc::SyncSender;
 use std::time::{Duration, Instant};
 
 mod beyond;
@@ -143,6 +144,11 @@ pub struct Watch {
     pub done: Arc<AtomicUsize>,
     /// Huber cells of the plan (set once the job is read; 0 before).
     pub total: Arc<AtomicUsize>,
+    /// Told of every Huber cell as it finishes, after [`Watch::done`] counts it and before its
+    /// worker takes another cell: a worker waits while the channel is full, so a caller that
+    /// sets [`Watch::stop`] on a message it received stops the run within the channel's bound
+    /// plus the cells in flight, however fast the cells are. None: nobody is told.
+    pub finished: Option<SyncSender<()>>,
 }
 
 impl Default for RunOptions {
@@ -349,6 +355,10 @@ fn run_loaded(
             let _ = tx.send(row.clone());
             if let Some(w) = opts.watch.as_ref().filter(|_| row.is_huber()) {
                 w.done.fetch_add(1, Ordering::Relaxed);
+                // A send fails only once the caller stopped listening.
+                if let Some(tx) = &w.finished {
+                    let _ = tx.send(());
+                }
             }
         };
         let nested = opts.shard.is_none();
