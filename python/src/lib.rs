@@ -217,8 +217,9 @@ fn write_model(doc: &str, to: &str, out: Option<PathBuf>) -> PyResult<String> {
 
 /// The continuous-time equivalent (`oesweep export --continuous`) of a model document (`oesweep
 /// export --to json`'s form) by `method` = "zoh" or "tustin", as JSON text: `method`, `num`,
-/// `den` (descending powers of s), `input_delay` (seconds), `delay_samples`. A model without
-/// an equivalent raises ValueError naming the pole.
+/// `den` (descending powers of s), `input_delay` (seconds), `delay_samples`, `zeros`, `poles`
+/// (`[re, im]` pairs), `gain`, `state_space` (`a`, `b`, `c`, `d`). A model without an
+/// equivalent raises ValueError naming the pole.
 #[pyfunction]
 fn to_continuous(doc: &str, method: &str) -> PyResult<String> {
     let model = oesweep::export::model::ModelOut::from_json_text(doc).map_err(JobError::new_err)?;
