@@ -154,8 +154,9 @@ fn companion_eigenvalues(f: &[f64]) -> Vec<(f64, f64)> {
     crate::dense::eigenvalues(c.as_ref()).unwrap_or_default()
 }
 
-/// Complex arithmetic on (re, im) pairs, just what the root finder needs.
-mod cplx {
+/// Complex arithmetic on (re, im) pairs: what the root finder and the continuous equivalent's
+/// factors (`export::continuous`) need.
+pub(crate) mod cplx {
     pub type C = (f64, f64);
     #[inline]
     pub fn add(a: C, b: C) -> C {

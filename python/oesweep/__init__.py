@@ -152,7 +152,8 @@ class Model:
         model) or ``"tustin"`` (the inverse bilinear map). The delay leaves as a dead time
         (``input_delay``, seconds), never as poles. ValueError, naming the pole, when there is no
         equivalent: under ZOH a pole at or near z = 0 or on the negative real axis, under
-        Tustin a pole at z = -1."""
+        Tustin a pole at z = -1. At high orders or short sample times use the result's
+        ``zeros``, ``poles``, ``gain`` or ``state_space`` rather than ``num``, ``den``."""
         return ContinuousModel(json.loads(_oesweep.to_continuous(json.dumps(self._document()), method)))
 
     def to_dict(self) -> Dict[str, Any]:
@@ -204,7 +205,12 @@ class Model:
 class ContinuousModel:
     """``Gc(s) = exp(-input_delay s) num(s)/den(s)``, a model's continuous-time equivalent
     (:meth:`Model.to_continuous`): ``num``, ``den`` in descending powers of s (``den`` monic),
-    ``input_delay`` in seconds (``delay_samples`` of the sample time), ``method``."""
+    ``input_delay`` in seconds (``delay_samples`` of the sample time), ``method``; the same
+    transfer function as ``zeros``, ``poles`` (complex, rad/s) and ``gain``, and as
+    ``state_space`` ``(A, B, C, D)`` in scaled second-order sections. ``num`` and ``den`` span
+    about ``ts**-n`` and are ill-conditioned at high orders and short sample times (a 9th-order
+    model at ``ts = 1e-4`` sampled back through them is off by orders of magnitude): for those
+    use ``to_control("ss")``, ``to_scipy("ss")`` or ``to_scipy("zpk")`` (docs/METHOD.md 18)."""
 
     def __init__(self, fields: Dict[str, Any]):
         self.method = fields["method"]
@@ -212,19 +218,45 @@ class ContinuousModel:
         self.den = np.array(fields["den"], dtype=np.float64)
         self.input_delay = float(fields["input_delay"])
         self.delay_samples = int(fields["delay_samples"])
+        self.zeros = np.array([complex(re, im) for re, im in fields["zeros"]], dtype=np.complex128)
+        self.poles = np.array([complex(re, im) for re, im in fields["poles"]], dtype=np.complex128)
+        self.gain = float(fields["gain"])
+        ss = fields["state_space"]
+        n = len(ss["b"])
+        self.state_space = (
+            np.array(ss["a"], dtype=np.float64).reshape(n, n),
+            np.array(ss["b"], dtype=np.float64).reshape(n, 1),
+            np.array(ss["c"], dtype=np.float64).reshape(1, n),
+            np.array([[ss["d"]]], dtype=np.float64),
+        )
 
-    def to_scipy(self):
-        """``scipy.signal.lti(num, den)``: without the dead time ``input_delay``, which scipy's
-        systems do not hold. Needs scipy."""
+    def to_scipy(self, form: str = "tf"):
+        """A scipy continuous system without the dead time ``input_delay``, which scipy's systems
+        do not hold: ``form="tf"`` ``lti(num, den)``, ``"zpk"`` ``lti(zeros, poles, gain)``,
+        ``"ss"`` ``lti(A, B, C, D)``. scipy samples a ``zpk`` system through ``tf``: give
+        ``cont2discrete`` the ``"ss"`` form. Needs scipy."""
         lti = _scipy_signal().lti
 
-        return lti(self.num, self.den)
+        if form == "tf":
+            return lti(self.num, self.den)
+        if form == "zpk":
+            return lti(self.zeros, self.poles, self.gain)
+        if form == "ss":
+            return lti(*self.state_space)
+        raise ValueError(f"form {form!r}: expected tf, zpk or ss")
 
-    def to_control(self):
-        """A continuous python-control ``TransferFunction``: without the dead time
-        ``input_delay``, which python-control's ``tf`` does not hold (``control.pade`` gives a
-        rational approximation to multiply in). Needs python-control."""
-        return _control().tf(self.num, self.den)
+    def to_control(self, form: str = "tf"):
+        """A continuous python-control system without the dead time ``input_delay``, which
+        python-control's systems do not hold (``control.pade`` gives a rational approximation to
+        multiply in): ``form="tf"`` a ``TransferFunction`` of ``num``, ``den``, ``"ss"`` a
+        ``StateSpace`` of ``state_space``, the well-conditioned one (python-control's ``zpk``
+        builds a ``tf``). Needs python-control."""
+        control = _control()
+        if form == "tf":
+            return control.tf(self.num, self.den)
+        if form == "ss":
+            return control.ss(*self.state_space)
+        raise ValueError(f"form {form!r}: expected tf or ss")
 
     def __repr__(self) -> str:
         return (f"ContinuousModel({self.method}, order {len(self.den) - 1}, "

@@ -248,8 +248,9 @@ fn write_model(py: Python<'_>, doc: &str, to: &str, out: Option<PathBuf>) -> PyR
 
 /// The continuous-time equivalent (`oesweep export --continuous`) of a model document (`oesweep
 /// export --to json`'s form) by `method` = "zoh" or "tustin", as JSON text: `method`, `num`,
-/// `den` (descending powers of s), `input_delay` (seconds), `delay_samples`. A model without
-/// an equivalent raises ValueError naming the pole.
+/// `den` (descending powers of s), `input_delay` (seconds), `delay_samples`, `zeros`, `poles`
+/// (`[re, im]` pairs), `gain`, `state_space` (`a`, `b`, `c`, `d`). A model without an
+/// equivalent raises ValueError naming the pole.
 #[pyfunction]
 fn to_continuous(py: Python<'_>, doc: &str, method: &str) -> PyResult<String> {
     py.detach(|| {

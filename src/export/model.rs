@@ -110,7 +110,8 @@ impl ModelOut {
     }
 
     /// [`Self::to_json_text`] with the continuous equivalent as a `continuous` object (`method`,
-    /// `num`, `den`, `input_delay`, `delay_samples`) after the discrete fields.
+    /// `num`, `den`, `input_delay`, `delay_samples`, `zeros` and `poles` as `[re, im]` pairs,
+    /// `gain`, `state_space` with `a` by rows, `b`, `c`, `d`) after the discrete fields.
     pub fn to_json_text_with(&self, continuous: Option<&ContinuousModel>) -> String {
         let doc = Doc { continuous, ..self.doc() };
         serde_json::to_string_pretty(&doc).expect("JSON of numbers") + "\n"
@@ -148,8 +149,9 @@ impl ModelOut {
         self.to_matlab_with(None)
     }
 
-    /// [`Self::to_matlab`] that also builds the continuous equivalent `Gc` (with its dead time
-    /// as `InputDelay` in MATLAB; Octave's `tf` has none, so there `input_delay` stands beside it).
+    /// [`Self::to_matlab`] that also builds the continuous equivalent as `Gc` (a `tf`) and `Gz`
+    /// (a `zpk`, well-conditioned), with its dead time as `InputDelay` in MATLAB (Octave's `tf`
+    /// and `zpk` have none, so there `input_delay` stands beside them).
     pub fn to_matlab_with(&self, continuous: Option<&ContinuousModel>) -> String {
         let (num, den) = self.num_den();
         let row = |v: &[f64]| v.iter().map(|x| matlab_number(*x)).collect::<Vec<_>>().join(", ");
@@ -199,10 +201,19 @@ impl ModelOut {
             let _ = writeln!(s, "denc = [{}];", row(&c.den));
             let _ =
                 writeln!(s, "input_delay = {}; % seconds, {} samples", matlab_number(c.input_delay), c.delay_samples);
+            let complex_row = |v: &[(f64, f64)]| v.iter().map(|&z| matlab_complex(z)).collect::<Vec<_>>().join(", ");
+            let _ =
+                writeln!(s, "% the same as zeros, poles (rad/s) and gain: well-conditioned where numc, denc are not");
+            let _ = writeln!(s, "% (high orders, short sample times; docs/METHOD.md 18): prefer Gz");
+            let _ = writeln!(s, "zc = [{}];", complex_row(&c.zeros));
+            let _ = writeln!(s, "pc = [{}];", complex_row(&c.poles));
+            let _ = writeln!(s, "kc = {};", matlab_number(c.gain));
             let _ = writeln!(s, "if exist('OCTAVE_VERSION', 'builtin')");
             let _ = writeln!(s, "  Gc = tf(numc, denc); % Octave's tf has no dead time");
+            let _ = writeln!(s, "  Gz = zpk(zc, pc, kc);");
             let _ = writeln!(s, "else");
             let _ = writeln!(s, "  Gc = tf(numc, denc, 'InputDelay', input_delay);");
+            let _ = writeln!(s, "  Gz = zpk(zc, pc, kc, 'InputDelay', input_delay);");
             let _ = writeln!(s, "end");
         }
         s
@@ -216,7 +227,8 @@ impl ModelOut {
     }
 
     /// [`Self::write_mat`] with the continuous equivalent as `numc`, `denc` (descending powers
-    /// of s) and `input_delay` (seconds).
+    /// of s), `zc`, `pc` (zeros and poles in rad/s, one a row: real and imaginary part), `kc`
+    /// (gain) and `input_delay` (seconds).
     pub fn write_mat_with(&self, path: &Path, continuous: Option<&ContinuousModel>) -> Result<()> {
         use matrw::{MatFile, MatVariable, MatlabType, NumericArray};
         let (num, den) = self.num_den();
@@ -250,6 +262,16 @@ impl ModelOut {
         if let Some(c) = continuous {
             mat.insert("numc", row(&c.num)?);
             mat.insert("denc", row(&c.den)?);
+            // Complex numbers as two columns, real and imaginary part: matrw stores each part of
+            // a complex array in the smallest type that holds it and then miscounts the bytes.
+            let columns = |v: &[(f64, f64)]| {
+                let (mut re, im): (Vec<f64>, Vec<f64>) = v.iter().copied().unzip();
+                re.extend(im);
+                array(vec![v.len(), 2], re)
+            };
+            mat.insert("zc", columns(&c.zeros)?);
+            mat.insert("pc", columns(&c.poles)?);
+            mat.insert("kc", scalar(c.gain)?);
             mat.insert("input_delay", scalar(c.input_delay)?);
         }
         // matrw writes to a path: a temporary sibling renamed into place, as every result file.
@@ -306,6 +328,15 @@ struct DocIn {
     covariance: Option<Vec<Vec<f64>>>,
     #[serde(default)]
     noise_variance: Option<f64>,
+}
+
+/// `re+imi` as MATLAB reads a complex number inside brackets (no spaces), `re` when `im` is zero.
+fn matlab_complex((re, im): (f64, f64)) -> String {
+    if im == 0.0 {
+        matlab_number(re)
+    } else {
+        format!("{}{}{}i", matlab_number(re), if im < 0.0 { "-" } else { "+" }, matlab_number(im.abs()))
+    }
 }
 
 /// Shortest text that reads back as exactly `x` in MATLAB (NaN and Inf by their names).
