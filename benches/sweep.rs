@@ -19,8 +19,7 @@ use std::time::Duration;
 fn sweep_throughput(c: &mut Criterion) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let est = read_record(&root.join("jobs/data/piezo_est.csv"), "u", "y").expect("bundled data");
-    let pairs: Vec<Structure> =
-        (9..=10).flat_map(|nb| (8..=11).map(move |nf| Structure { nb, nf, delay: 1 })).collect();
+    let pairs: Vec<Structure> = (9..=10).flat_map(|nb| (8..=11).map(move |nf| Structure::siso(nb, nf, 1))).collect();
     let ks = vec![0.05, 0.0875, 0.15, 0.3, 0.6, 1.2];
     let plan = Plan { pairs, ks, start: StartStrategy::default(), ls_support: Vec::new() };
     let ctx = Context {

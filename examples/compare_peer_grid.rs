@@ -96,7 +96,7 @@ fn main() {
     // The least-squares phase as the sweep runs it: in the plan's waves of equal nB + nF, each
     // pair with the nested starts of its sub-models (METHOD.md 5.2, step 2).
     let plan = oesweep::plan::Plan {
-        pairs: pairs.iter().map(|((nb, nf), _)| oesweep::plan::Structure { nb: *nb, nf: *nf, delay: 1 }).collect(),
+        pairs: pairs.iter().map(|((nb, nf), _)| oesweep::plan::Structure::siso(*nb, *nf, 1)).collect(),
         ks: Vec::new(),
         start: Default::default(),
         ls_support: Vec::new(),
@@ -107,13 +107,13 @@ fn main() {
         let fitted: Vec<_> = wave
             .par_iter()
             .map_init(Workspace::new, |ws, &p| {
-                let (nb, nf) = (plan.pairs[p].nb, plan.pairs[p].nf);
+                let (nb, nf) = (plan.pairs[p].one().nb, plan.pairs[p].one().nf);
                 let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false, seams: &[] };
                 let subs: &[usize] = if opts.nested_starts { &subs[p] } else { &[] };
                 let nested: Vec<Vec<f64>> = subs
                     .iter()
                     .filter_map(|&s| ls_fits[s].as_ref().filter(|(f, _)| f.ok()).map(|(f, _)| (s, f.theta())))
-                    .map(|(s, theta)| estimate::embed(&theta, plan.pairs[s].nb, plan.pairs[s].nf, &prob))
+                    .map(|(s, theta)| estimate::embed(&theta, plan.pairs[s].one().nb, plan.pairs[s].one().nf, &prob))
                     .collect();
                 let t = Instant::now();
                 let ls = estimate::fit_ls_nested(&prob, &judge, &opts, &nested, ws);

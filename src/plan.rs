@@ -17,7 +17,7 @@ fn pairs(nb: &[usize], nf: &[usize], delays: &[usize]) -> Vec<Structure> {
     for &delay in delays {
         for &b in nb {
             for &f in nf {
-                out.push(Structure { nb: b, nf: f, delay });
+                out.push(Structure::siso(b, f, delay));
             }
         }
     }
@@ -26,7 +26,7 @@ fn pairs(nb: &[usize], nf: &[usize], delays: &[usize]) -> Vec<Structure> {
 
 /// Position of each pair in `pairs`.
 fn pair_index(pairs: &[Structure]) -> std::collections::HashMap<(usize, usize, usize), usize> {
-    pairs.iter().enumerate().map(|(i, p)| ((p.nb, p.nf, p.delay), i)).collect()
+    pairs.iter().enumerate().map(|(i, p)| ((p.one().nb, p.one().nf, p.one().delay), i)).collect()
 }
 
 /// Indices of pair `i`'s sub-models (nB - 1, nF) and (nB, nF - 1), same delay, in `pairs`.
@@ -37,11 +37,11 @@ fn sub_models(
 ) -> Vec<usize> {
     let p = pairs[i];
     let mut out = Vec::new();
-    if p.nb > 0 {
-        out.extend(index.get(&(p.nb - 1, p.nf, p.delay)));
+    if p.one().nb > 0 {
+        out.extend(index.get(&(p.one().nb - 1, p.one().nf, p.one().delay)));
     }
-    if p.nf > 0 {
-        out.extend(index.get(&(p.nb, p.nf - 1, p.delay)));
+    if p.one().nf > 0 {
+        out.extend(index.get(&(p.one().nb, p.one().nf - 1, p.one().delay)));
     }
     out
 }
@@ -115,7 +115,7 @@ impl Plan {
         let all = self.ls_pairs();
         let mut waves: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
         for (i, p) in all.iter().enumerate() {
-            waves.entry(p.nb + p.nf).or_default().push(i);
+            waves.entry(p.one().nb + p.one().nf).or_default().push(i);
         }
         waves.into_values().collect()
     }

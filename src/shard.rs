@@ -82,7 +82,7 @@ impl Shard {
 /// documentation).
 pub fn pair_cost(plan: &Plan, pair: usize) -> f64 {
     let p = plan.pairs[pair];
-    ((p.nb + p.nf) * (plan.ks.len() + 1)) as f64
+    ((p.one().nb + p.one().nf) * (plan.ks.len() + 1)) as f64
 }
 
 /// The pairs (indices into `plan.pairs`, ascending) of each of `count` shards.
@@ -131,7 +131,7 @@ pub fn owner(plan: &Plan, count: usize, nb: usize, nf: usize) -> Result<usize> {
     let p = plan
         .pairs
         .iter()
-        .position(|q| q.nb == nb && q.nf == nf)
+        .position(|q| q.one().nb == nb && q.one().nf == nf)
         .ok_or_else(|| Error::Invalid(format!("OE({nb}, {nf}) is not an order pair of the plan")))?;
     Ok(layout(plan, count).iter().position(|s| s.contains(&p)).expect("every pair has a shard"))
 }
@@ -168,7 +168,7 @@ impl Missing {
                 } else if !ks.is_empty() {
                     what.push(format!("k_index {}", ranges(ks)));
                 }
-                format!("OE({}, {}): {}", pair.nb, pair.nf, what.join(", "))
+                format!("OE({}, {}): {}", pair.one().nb, pair.one().nf, what.join(", "))
             })
             .collect();
         if self.pairs.len() > limit {
@@ -218,7 +218,7 @@ mod tests {
     use crate::plan::Structure;
 
     fn plan(nb: std::ops::RangeInclusive<usize>, nf: std::ops::RangeInclusive<usize>, n_k: usize) -> Plan {
-        let pairs = nb.flat_map(|b| nf.clone().map(move |f| Structure { nb: b, nf: f, delay: 1 })).collect();
+        let pairs = nb.flat_map(|b| nf.clone().map(move |f| Structure::siso(b, f, 1))).collect();
         Plan {
             pairs,
             ks: (1..=n_k).map(|i| i as f64 / 10.0).collect(),
@@ -262,7 +262,7 @@ mod tests {
         assert_eq!(sub.pairs, idx.iter().map(|&i| p.pairs[i]).collect::<Vec<_>>());
         assert_eq!(sub.ks, p.ks);
         let q = p.pairs[idx[0]];
-        assert_eq!(owner(&p, 3, q.nb, q.nf).unwrap(), 1);
+        assert_eq!(owner(&p, 3, q.one().nb, q.one().nf).unwrap(), 1);
     }
 
     #[test]

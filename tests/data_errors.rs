@@ -105,7 +105,7 @@ fn csv_reads_values_and_names() {
     let r = read_record(&p, "u", "y").unwrap();
     assert_eq!(r.u, vec![1.5, 2.5e-3]);
     assert_eq!(r.y, vec![-2.0, 3.0]);
-    assert_eq!((r.u_name.as_str(), r.y_name.as_str()), ("u", "y"));
+    assert_eq!((r.u_names[0].as_str(), r.y_name.as_str()), ("u", "y"));
     assert_eq!(r.path, p);
 }
 
@@ -227,7 +227,7 @@ fn parquet_page_header_with_a_negative_count() {
 }
 
 fn record(name: &str, u: Vec<f64>, y: Vec<f64>) -> Record {
-    Record { path: PathBuf::from(name), u, y, u_name: "u".into(), y_name: "y".into(), seams: Vec::new() }
+    Record { path: PathBuf::from(name), u, y, u_names: vec!["u".into()], y_name: "y".into(), seams: Vec::new() }
 }
 
 fn model_err(rec: &Record, nb: usize, nf: usize, delay: usize, want: &str) {

@@ -91,10 +91,10 @@ fn every_dialect_gives_the_same_record() {
     // Positions name the column in messages and records.
     let p = dir.path().join("daisy.dat");
     let r = read(&p, &(ColumnRef::Position(2), ColumnRef::Position(3)), &default);
-    assert_eq!((r.u_name.as_str(), r.y_name.as_str()), ("column 2", "column 3"));
+    assert_eq!((r.u_names[0].as_str(), r.y_name.as_str()), ("column 2", "column 3"));
     let p = dir.path().join("positions_with_header.csv");
     let r = read(&p, &(ColumnRef::Position(2), ColumnRef::Position(3)), &default);
-    assert_eq!((r.u_name.as_str(), r.y_name.as_str()), ("input", "output"));
+    assert_eq!((r.u_names[0].as_str(), r.y_name.as_str()), ("input", "output"));
     assert_eq!(column_names(&p, &default).unwrap(), vec!["time", "input", "output"]);
     assert!(column_names(&dir.path().join("daisy.dat"), &default).unwrap().is_empty());
 }

@@ -112,7 +112,7 @@ fn offset_is_recovered_and_the_fit_does_not_depend_on_it() {
             path: "offset.csv".into(),
             y: oe::simulate_vec(&b, &f, 1, &centred).iter().map(|v| v + c).collect(),
             u: u.clone(),
-            u_name: "u".into(),
+            u_names: vec!["u".into()],
             y_name: "y".into(),
             seams: Vec::new(),
         };

@@ -159,7 +159,7 @@ fn merge_names_missing_cells_and_partial_merges_what_there_is() {
     for (i, pairs) in layout.iter().enumerate() {
         let line = plan_out.lines().find(|l| l.trim_start().starts_with(&format!("{i}/3"))).expect("a line per shard");
         for &p in pairs {
-            assert!(line.contains(&format!("({},{})", plan.pairs[p].nb, plan.pairs[p].nf)), "{line}");
+            assert!(line.contains(&format!("({},{})", plan.pairs[p].one().nb, plan.pairs[p].one().nf)), "{line}");
         }
     }
 
@@ -170,7 +170,10 @@ fn merge_names_missing_cells_and_partial_merges_what_there_is() {
     let cells = layout[1].len() * plan.ks.len();
     assert!(err.contains(&format!("{cells} of 64 cells and {} of 16", layout[1].len())), "{err}");
     for &p in &layout[1] {
-        assert!(err.contains(&format!("OE({}, {}): ls, all 4 k", plan.pairs[p].nb, plan.pairs[p].nf)), "{err}");
+        assert!(
+            err.contains(&format!("OE({}, {}): ls, all 4 k", plan.pairs[p].one().nb, plan.pairs[p].one().nf)),
+            "{err}"
+        );
     }
     assert!(err.contains("shard 1 of 3"), "{err}");
     assert!(!out.join("cells.parquet").exists() && !out.join("selection.json").exists(), "nothing written");
@@ -180,7 +183,7 @@ fn merge_names_missing_cells_and_partial_merges_what_there_is() {
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     let partial = table(&out.join("cells.parquet"));
     let kept: HashSet<(u32, u32)> =
-        layout[1].iter().map(|&p| (plan.pairs[p].nb as u32, plan.pairs[p].nf as u32)).collect();
+        layout[1].iter().map(|&p| (plan.pairs[p].one().nb as u32, plan.pairs[p].one().nf as u32)).collect();
     let want: Vec<CellRow> = expected.iter().filter(|r| !kept.contains(&(r.key.nb, r.key.nf))).cloned().collect();
     assert!(partial == want, "the partial table holds exactly the rows of shards 0 and 2");
     assert!(out.join("parts/shard-0-of-3").exists(), "a partial merge keeps the checkpoint");

@@ -146,7 +146,8 @@ pub(super) fn print_layout(plan: &Plan, n: usize) {
     outln!("{:>7} {:>6} {:>7} {:>11} {:>7}  order pairs (nB,nF)", "shard", "pairs", "cells", "est. cost", "share");
     for (i, pairs) in layout.iter().enumerate() {
         let cost: f64 = pairs.iter().map(|&p| shard::pair_cost(plan, p)).sum();
-        let list: Vec<String> = pairs.iter().map(|&p| format!("({},{})", plan.pairs[p].nb, plan.pairs[p].nf)).collect();
+        let list: Vec<String> =
+            pairs.iter().map(|&p| format!("({},{})", plan.pairs[p].one().nb, plan.pairs[p].one().nf)).collect();
         outln!(
             "{:>7} {:>6} {:>7} {:>11} {:>6.1}%  {}",
             format!("{i}/{n}"),

@@ -41,12 +41,14 @@ use crate::error::{Error, Result};
 pub struct Record {
     /// The file the record was read from (used in later error messages).
     pub path: PathBuf,
-    /// Input samples `u_1..u_N`.
+    /// Input samples, input after input: `u[i N .. (i+1) N]` is input i's `u_1..u_N`
+    /// ([`Record::input`]; one input: the whole vector).
     pub u: Vec<f64>,
     /// Output samples `y_1..y_N` (same length as `u`).
     pub y: Vec<f64>,
-    /// Name of the input column in the file (its header name, or "column 3" without one).
-    pub u_name: String,
+    /// Names of the input columns in the file (header names, or "column 3" without one), one
+    /// per input.
+    pub u_names: Vec<String>,
     /// Name of the output column in the file.
     pub y_name: String,
     /// Where the experiments after the first begin, when the record is several experiments
@@ -80,7 +82,7 @@ impl Record {
                 return Err(input_error(&path, format!("sample {i} of {name} is {}, not a finite number", x[i])));
             }
         }
-        Ok(Record { path, u, y, u_name: "u".into(), y_name: "y".into(), seams: Vec::new() })
+        Ok(Record { path, u, y, u_names: vec!["u".into()], y_name: "y".into(), seams: Vec::new() })
     }
 
     /// Several experiments as one record: the samples one after the other, with a seam where
@@ -88,13 +90,35 @@ impl Record {
     /// record is returned as it is.
     pub fn concat(mut records: Vec<Record>) -> Record {
         assert!(!records.is_empty(), "no record to concatenate");
+        if records.len() == 1 {
+            return records.remove(0);
+        }
+        let m = records[0].inputs();
+        let n: usize = records.iter().map(Record::len).sum();
+        let mut u = Vec::with_capacity(m * n);
+        for i in 0..m {
+            for r in &records {
+                u.extend_from_slice(r.input(i));
+            }
+        }
         let mut all = records.remove(0);
         for r in records {
-            all.seams.push(all.u.len());
-            all.u.extend_from_slice(&r.u);
+            all.seams.push(all.y.len());
             all.y.extend_from_slice(&r.y);
         }
+        all.u = u;
         all
+    }
+
+    /// Number of inputs m.
+    pub fn inputs(&self) -> usize {
+        self.u_names.len()
+    }
+
+    /// Input i's samples `u_i,1..u_i,N`.
+    pub fn input(&self, i: usize) -> &[f64] {
+        let n = self.len();
+        &self.u[i * n..(i + 1) * n]
     }
 
     /// The sample ranges of the experiments (one range for a single experiment).
@@ -104,12 +128,12 @@ impl Record {
 
     /// Number of samples N.
     pub fn len(&self) -> usize {
-        self.u.len()
+        self.y.len()
     }
 
     /// True when the record holds no sample (never the case for a record read from a file).
     pub fn is_empty(&self) -> bool {
-        self.u.is_empty()
+        self.y.is_empty()
     }
 }
 
@@ -312,7 +336,7 @@ pub fn read_record_with(path: &Path, u: &ColumnRef, y: &ColumnRef, opts: &ReadOp
     }
     let (y, u) = (values.pop().expect("two columns"), values.pop().expect("two columns"));
     let (y_name, u_name) = (names.pop().expect("two columns"), names.pop().expect("two columns"));
-    Ok(Record { path: path.to_path_buf(), u, y, u_name, y_name, seams: Vec::new() })
+    Ok(Record { path: path.to_path_buf(), u, y, u_names: vec![u_name], y_name, seams: Vec::new() })
 }
 
 /// Reads the named numeric columns of a file, all rows, default dialect, in the order of
@@ -395,7 +419,7 @@ pub fn check_for_model(rec: &Record, nb: usize, nf: usize, delay: usize) -> Resu
     if let Some(v) = constant_value(&rec.u) {
         return Err(input_error(
             &rec.path,
-            format!("input column '{}' is constant (value {v}): it does not excite the system", rec.u_name),
+            format!("input column '{}' is constant (value {v}): it does not excite the system", rec.u_names[0]),
         ));
     }
     if let Some(v) = constant_value(&rec.y) {

@@ -512,7 +512,7 @@ fn header(s: &Review) -> html::Header {
             "<code>{}</code>: {} samples, u = {}, y = {}",
             esc(&r.path.display().to_string()),
             r.len(),
-            esc(&r.u_name),
+            esc(&r.u_names.join(", ")),
             esc(&r.y_name)
         )
     };

@@ -54,7 +54,7 @@ pub(super) fn tasks(plan: &Plan, nested_starts: bool, nested_check: bool) -> (Ve
     let ls_pairs = plan.ls_pairs();
     let subs = plan.ls_sub_models();
     let n = ls_pairs.len();
-    let size = |s: &Structure| (s.nb + s.nf) as u64;
+    let size = |s: &Structure| (s.one().nb + s.one().nf) as u64;
     let mut tasks: Vec<Task> = (0..n).map(Task::Ls).chain((0..n).map(Task::LsOwn)).collect();
     let mut after: Vec<Vec<usize>> = subs
         .iter()
@@ -144,9 +144,9 @@ pub(super) fn task_times(plan: &Plan, tasks: &[Task], graph: &schedule::Graph) -
             TaskTime {
                 id,
                 kind,
-                nb: pair.nb,
-                nf: pair.nf,
-                delay: pair.delay,
+                nb: pair.one().nb,
+                nf: pair.one().nf,
+                delay: pair.one().delay,
                 k_index,
                 after: graph.after[id].clone(),
                 priority: graph.priority[id],
@@ -184,7 +184,7 @@ mod tests {
     #[test]
     fn every_task_comes_after_what_it_reads() {
         let grid = |start| Plan {
-            pairs: (1..=3).flat_map(|nb| (1..=3).map(move |nf| Structure { nb, nf, delay: 1 })).collect(),
+            pairs: (1..=3).flat_map(|nb| (1..=3).map(move |nf| Structure::siso(nb, nf, 1))).collect(),
             ks: vec![0.1, 1.0],
             start,
             ls_support: Vec::new(),

@@ -84,9 +84,9 @@ impl Context<'_> {
         Problem {
             u: &self.est.u,
             y: &self.est.y,
-            nb: pair.nb,
-            nf: pair.nf,
-            delay: pair.delay,
+            nb: pair.one().nb,
+            nf: pair.one().nf,
+            delay: pair.one().delay,
             offset: self.levels.mode.estimated(),
             seams: &self.est.seams,
         }
@@ -401,7 +401,7 @@ impl Sweep<'_> {
                 .filter_map(|&s| {
                     let (sub, _) = self.pair_fit(s)?;
                     let (_, theta) = sub.start.as_ref()?;
-                    Some(estimate::embed(theta, ls_pairs[s].nb, ls_pairs[s].nf, &prob))
+                    Some(estimate::embed(theta, ls_pairs[s].one().nb, ls_pairs[s].one().nf, &prob))
                 })
                 .collect();
             self.pair_ls(pair, p, &nested, ws)

@@ -70,7 +70,7 @@ pub(super) fn check_cell<'r>(
             })?
             .1;
     let k_index = key.k_index? as usize;
-    let pair = Structure { nb: key.nb as usize, nf: key.nf as usize, delay: key.delay as usize };
+    let pair = Structure::siso(key.nb as usize, key.nf as usize, key.delay as usize);
     let prob = ctx.problem(&pair);
     let warm = ctx.solver.huber_warm();
     let t = Instant::now();

@@ -72,16 +72,22 @@ impl RowKey {
     pub fn huber(pair: &Structure, k_index: usize) -> Self {
         RowKey {
             kind: FitKind::Huber,
-            delay: pair.delay as u32,
-            nb: pair.nb as u32,
-            nf: pair.nf as u32,
+            delay: pair.one().delay as u32,
+            nb: pair.one().nb as u32,
+            nf: pair.one().nf as u32,
             k_index: Some(k_index as u32),
         }
     }
 
     /// Key of the least-squares row of a pair.
     pub fn ls(pair: &Structure) -> Self {
-        RowKey { kind: FitKind::Ls, delay: pair.delay as u32, nb: pair.nb as u32, nf: pair.nf as u32, k_index: None }
+        RowKey {
+            kind: FitKind::Ls,
+            delay: pair.one().delay as u32,
+            nb: pair.one().nb as u32,
+            nf: pair.one().nf as u32,
+            k_index: None,
+        }
     }
 
     /// The order pair's structure `(nb, nf, delay)`.
@@ -225,7 +231,7 @@ impl CellRow {
 
     /// Row of a least-squares fit.
     pub fn from_ls(ls: &LsFit, seconds: f64) -> Self {
-        let pair = Structure { nb: ls.nb, nf: ls.nf, delay: ls.delay };
+        let pair = Structure::siso(ls.nb, ls.nf, ls.delay);
         let fitted = Fitted {
             criterion: ls.criterion,
             assessment: &ls.assessment,
