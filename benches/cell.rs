@@ -16,6 +16,7 @@
 //! Run: `cargo bench --bench cell` (about a minute). Each benchmark reports, on stderr, the
 //! iteration count of the fit it times, so time per iteration can be read off.
 
+use oesweep::oe::Structure;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
@@ -66,7 +67,7 @@ fn l2_phase(c: &mut Criterion) {
     let mut group = c.benchmark_group("l2_phase");
     group.sampling_mode(SamplingMode::Flat);
     for (nb, nf) in ORDERS {
-        let prob = Problem { u: &u, y: &y, nb, nf, delay: 1, offset: false, seams: &[] };
+        let prob = Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
         // One workspace per bench, reused across calls, as a sweep worker reuses its own.
         let mut ws = Workspace::new();
         let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
@@ -89,7 +90,7 @@ fn huber_phase(c: &mut Criterion) {
     let mut group = c.benchmark_group("huber_phase");
     group.sampling_mode(SamplingMode::Flat);
     for (nb, nf) in ORDERS {
-        let prob = Problem { u: &u, y: &y, nb, nf, delay: 1, offset: false, seams: &[] };
+        let prob = Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
         let mut ws = Workspace::new();
         let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
         let loss = Loss::Huber { gamma: K * ls.sigma };
@@ -112,7 +113,7 @@ fn huber_multi(c: &mut Criterion) {
     let mut group = c.benchmark_group("huber_multi");
     group.sampling_mode(SamplingMode::Flat);
     for (nb, nf) in ORDERS {
-        let prob = Problem { u: &u, y: &y, nb, nf, delay: 1, offset: false, seams: &[] };
+        let prob = Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
         let mut ws = Workspace::new();
         let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
         let (h, which) = estimate::fit_huber_multi(&prob, &ls, K, &Judge::default(), &opts, &mut ws);
@@ -138,7 +139,7 @@ fn huber_phase_n(c: &mut Criterion) {
     group.sampling_mode(SamplingMode::Flat);
     for (i, n) in LENGTHS.into_iter().enumerate() {
         let (u, y) = simulated_record(n, 101 + i as u64);
-        let prob = Problem { u: &u, y: &y, nb, nf, delay: 1, offset: false, seams: &[] };
+        let prob = Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
         let mut ws = Workspace::new();
         let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
         let loss = Loss::Huber { gamma: K * ls.sigma };

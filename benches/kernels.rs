@@ -9,6 +9,7 @@
 //!
 //! Run: `cargo bench --bench kernels` (under a minute).
 
+use oesweep::oe::Structure;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
@@ -38,7 +39,7 @@ fn setup() -> Setup {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_est.csv");
     let rec = oesweep::data::read_record(&path, "u", "y").expect("bundled estimation data");
     let (u, y) = (rec.u, rec.y);
-    let prob = Problem { u: &u, y: &y, nb: NB, nf: NF, delay: DELAY, offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(NB, NF, DELAY), offset: false, seams: &[] };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
@@ -89,7 +90,7 @@ fn filters(c: &mut Criterion, s: &Setup) {
 }
 
 fn normal_equations(c: &mut Criterion, s: &Setup) {
-    let lay = Layout { nb: NB, nf: NF, delay: DELAY };
+    let lay = Layout::siso(NB, NF, DELAY);
     let d = lay.dim();
     let (mut h, mut g) = (vec![0.0; d * d], vec![0.0; d]);
     let mut ne = NormalEquations::default();
@@ -117,7 +118,7 @@ fn normal_equations(c: &mut Criterion, s: &Setup) {
 }
 
 fn one_iteration(c: &mut Criterion, s: &Setup) {
-    let prob = Problem { u: &s.u, y: &s.y, nb: NB, nf: NF, delay: DELAY, offset: false, seams: &[] };
+    let prob = Problem { u: &s.u, y: &s.y, structure: Structure::siso(NB, NF, DELAY), offset: false, seams: &[] };
     let opts = SolverOptions { max_iterations: 1, ..Default::default() };
     let loss = Loss::Huber { gamma: s.gamma };
     let mut ws = Workspace::new();

@@ -119,7 +119,7 @@ fn gram_cholesky_std(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
     let (n, d) = (prob.n(), prob.dim());
     let (b, f, _) = prob.split(theta);
     let (mut xu, mut yh, mut xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    oe::simulate_filtered(b, f, prob.delay, prob.u, &mut xu, &mut yh, &mut xy);
+    oe::simulate_filtered(b, f, prob.one().delay, prob.u, &mut xu, &mut yh, &mut xy);
     let r: Vec<f64> = prob.y.iter().zip(&yh).map(|(y, v)| y - v).collect();
     let kappa = r.iter().map(|v| v * v).sum::<f64>() / n as f64;
     let (mut h, mut g) = (vec![0.0; d * d], vec![0.0; d]);
@@ -197,7 +197,7 @@ fn main() {
         let d = nb + nf;
         let (mut xu, mut yh, mut xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
         oe::simulate_filtered(&b, &f, delay, u, &mut xu, &mut yh, &mut xy);
-        let lay = estimate::normal::Layout { nb, nf, delay };
+        let lay = estimate::normal::Layout::siso(nb, nf, delay);
         let mut h = vec![0.0; d * d];
         let mut row = vec![0.0; d];
         for t in 0..n {
@@ -241,7 +241,8 @@ fn main() {
         let (uo, y0o) = if per_input { make(5000 + seed) } else { (u0.clone(), y00.clone()) };
         let (u, y0) = (&uo[..], &y0o[..]);
         let y: Vec<f64> = y0.iter().map(|v| v + sigma * rng.normal()).collect();
-        let prob = Problem { u, y: &y, nb, nf, delay, offset: false, seams: &[] };
+        let prob =
+            Problem { u, y: &y, structure: oesweep::oe::Structure::siso(nb, nf, delay), offset: false, seams: &[] };
         let ls = estimate::fit_ls_from(&prob, &truth, &judge, &opts, &mut ws);
         let th = ls.theta();
         if seed < 5 {

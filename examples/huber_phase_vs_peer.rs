@@ -20,6 +20,7 @@
 //! `solver.explore_rows`.
 
 use oesweep::estimate::{self, Judge, Loss, Problem, SolverOptions, Workspace, solver};
+use oesweep::oe::Structure;
 use std::time::Instant;
 
 const REPEAT: usize = 3;
@@ -85,7 +86,8 @@ fn main() {
     // Per listed order pair: (ours, peer) seconds summed over its k values, and their count.
     let mut pair_totals: Vec<((usize, usize), f64, f64, usize)> = Vec::new();
     for c in &cells {
-        let prob = Problem { u: &rec.u, y: &rec.y, nb: c.nb, nf: c.nf, delay: 1, offset: false, seams: &[] };
+        let prob =
+            Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(c.nb, c.nf, 1), offset: false, seams: &[] };
         if ls.as_ref().is_none_or(|(key, _)| *key != (c.nb, c.nf)) {
             ls = Some(((c.nb, c.nf), estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws)));
         }

@@ -30,6 +30,7 @@ pub mod shard;
 pub mod simulate;
 pub mod slurm;
 pub mod spectral;
+pub mod structure;
 pub mod sweep;
 pub mod table;
 pub mod text;

@@ -6,6 +6,7 @@ use common::*;
 use oesweep::estimate::normal::{Layout, NormalEquations};
 use oesweep::estimate::{self, Judge, Loss, Problem, SolverOptions, Workspace, solver};
 use oesweep::oe;
+use oesweep::oe::Structure;
 
 fn assert_params(got: &[f64], truth: &[f64], tol: f64, what: &str) {
     let scale = truth.iter().map(|v| v.abs()).fold(0.0, f64::max);
@@ -18,7 +19,7 @@ fn recover(b: &[f64], f: &[f64], n: usize) {
     let u = binary_input(n, 3, 10.0, 7);
     let y = oe::simulate_vec(b, f, 1, &u);
     let truth = [b, f].concat();
-    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(b.len(), f.len(), 1), offset: false, seams: &[] };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let judge = Judge::default();
@@ -63,7 +64,7 @@ fn an_over_parameterised_fit_of_noise_free_data_is_exact() {
     let (b, f) = oe22();
     let u = binary_input(2000, 3, 1.0, 11);
     let y = oe::simulate_vec(&b, &f, 1, &u);
-    let prob = Problem { u: &u, y: &y, nb: 6, nf: 6, delay: 1, offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(6, 6, 1), offset: false, seams: &[] };
     let ls = estimate::fit_ls(&prob, &Judge::default(), &SolverOptions::default(), &mut Workspace::new());
     let scale = y.iter().map(|v| v * v).sum::<f64>() / y.len() as f64;
     assert!(ls.criterion < 1e-12 * scale, "criterion {} against a mean square of {scale}", ls.criterion);
@@ -75,7 +76,7 @@ fn jacobian_matches_finite_differences() {
     let (b, f) = oe1010();
     let n = 400;
     let u = binary_input(n, 2, 1.0, 3);
-    let lay = Layout { nb: b.len(), nf: f.len(), delay: 1 };
+    let lay = Layout::siso(b.len(), f.len(), 1);
     let theta: Vec<f64> = [&b[..], &f[..]].concat().iter().map(|v| v * 0.99).collect();
     let (tb, tf) = theta.split_at(b.len());
     let yhat = oe::simulate_vec(tb, tf, 1, &u);
@@ -124,7 +125,7 @@ fn huber_gradient_matches_finite_differences() {
     let mut xy = yhat.clone();
     oe::inv_f_in_place(&theta[2..], &mut xy);
     let (mut h, mut g) = (vec![0.0; 16], vec![0.0; 4]);
-    NormalEquations::default().build(&Layout { nb: 2, nf: 2, delay: 1 }, &xu, &xy, None, &r, &mut h, &mut g);
+    NormalEquations::default().build(&Layout::siso(2, 2, 1), &xu, &xy, None, &r, &mut h, &mut g);
     for c in 0..4 {
         let step = 1e-6;
         let mut tp = theta.clone();
@@ -171,7 +172,7 @@ fn outlier_data(frac: f64) -> Outlier {
 #[test]
 fn huber_beats_least_squares_with_outliers_and_invariants_hold() {
     let d = outlier_data(0.10);
-    let prob = Problem { u: &d.u, y: &d.y, nb: 10, nf: 10, delay: 1, offset: false, seams: &[] };
+    let prob = Problem { u: &d.u, y: &d.y, structure: Structure::siso(10, 10, 1), offset: false, seams: &[] };
     let judge = Judge {
         validation: Some((&d.uv, &d.yv0)),
         initial_state: oesweep::estimate::InitialState::Zero,
@@ -207,7 +208,7 @@ fn chains_recover_the_truth_merge_duplicates_and_keep_the_best() {
     let u = binary_input(2000, 3, 10.0, 7);
     let y = oe::simulate_vec(&b, &f, 1, &u);
     let truth = [&b[..], &f[..]].concat();
-    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[] };
     let (opts, judge, mut ws) = (SolverOptions::default(), Judge::default(), Workspace::new());
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
     // The same start twice plus a poor one: all three reach the single (true) minimum.
@@ -259,7 +260,7 @@ fn warm_damping_converges_to_a_minimum_in_fewer_iterations() {
         .iter()
         .map(|v| v + rng.normal() + if rng.next() < 0.05 { 6.0 } else { 0.0 })
         .collect();
-    let prob = Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(b.len(), f.len(), 1), offset: false, seams: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let cold = SolverOptions { warm_lambda0: opts.lambda0, ..opts.clone() };
@@ -321,7 +322,7 @@ impl Oe1010 {
     }
 
     fn prob(&self) -> Problem<'_> {
-        Problem { u: &self.u, y: &self.y, nb: self.nb, nf: self.nf, delay: 1, offset: false, seams: &[] }
+        Problem { u: &self.u, y: &self.y, structure: Structure::siso(self.nb, self.nf, 1), offset: false, seams: &[] }
     }
 
     /// The least-squares fit (default settings) and a start far from it (see [`shrunk`]).
@@ -451,7 +452,7 @@ fn a_creeping_chain_keeps_its_budget_while_it_loses() {
 #[test]
 fn the_backward_walk_finds_the_branch_below_a_fold_and_is_never_worse() {
     let rec = piezo_estimation_record();
-    let prob = Problem { u: &rec.u, y: &rec.y, nb: 8, nf: 4, delay: 1, offset: false, seams: &[] };
+    let prob = Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(8, 4, 1), offset: false, seams: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
@@ -491,7 +492,7 @@ fn the_backward_walk_finds_the_branch_below_a_fold_and_is_never_worse() {
 fn the_top_cell_is_no_worse_than_its_fits_from_theta_ls() {
     let rec = piezo_estimation_record();
     for (nb, nf, cold_lower) in [(14, 11, false), (12, 8, true)] {
-        let prob = Problem { u: &rec.u, y: &rec.y, nb, nf, delay: 1, offset: false, seams: &[] };
+        let prob = Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
         let (judge, mut ws) = (Judge::default(), Workspace::new());
         let opts = SolverOptions::default();
         let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);

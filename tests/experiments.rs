@@ -12,6 +12,7 @@ use oesweep::engine::{self, RunEnd, RunOptions};
 use oesweep::estimate::normal::{Layout, NormalEquations};
 use oesweep::export::parquet::read_cells;
 use oesweep::oe;
+use oesweep::oe::Structure;
 use oesweep::shard::Shard;
 use oesweep::table::{CellRow, FitKind};
 use std::path::{Path, PathBuf};
@@ -113,7 +114,7 @@ fn normal_equations_do_not_reach_across_seams() {
         (0..n).map(|_| r.normal()).collect(),
         (0..n).map(|_| r.normal()).collect(),
     );
-    let lay = Layout { nb: 3, nf: 4, delay: 2 };
+    let lay = Layout::siso(3, 4, 2);
     let d0 = lay.dim();
     for weights in [None, Some(0.3), Some(0.8)] {
         // A share of the rows reweighted: the correction path (few) or the direct one (most).
@@ -371,7 +372,7 @@ fn noise_free_experiments_give_the_true_model_with_either_method() {
     for method in [SolverMethod::Lm, SolverMethod::Separable] {
         let opts = SolverOptions { method, ..SolverOptions::default() };
         let mut ws = Workspace::new();
-        let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: true, seams: &seams };
+        let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &seams };
         let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
         let theta: Vec<f64> = ls.b.iter().chain(&ls.f).copied().chain(ls.offset).collect();
         for (x, t) in theta.iter().zip(&truth) {

@@ -3,6 +3,7 @@
 //! a global allocator counts the allocations of a second, identical minimisation.
 
 use oesweep::estimate::{Loss, Problem, SolverMethod, SolverOptions, Workspace, initial_guess, solver};
+use oesweep::oe::Structure;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -34,7 +35,7 @@ fn a_minimisation_with_pole_reflections_allocates_only_its_result() {
     let rec = oesweep::data::read_record(path.as_ref(), "u", "y").unwrap();
     // OE(12,12) from the ARX guess: the least-squares fit reflects unstable trial steps (the
     // piezo's lightly damped modes), and the Huber fit from there runs the weighted paths.
-    let prob = Problem { u: &rec.u, y: &rec.y, nb: 12, nf: 12, delay: 1, offset: false, seams: &[] };
+    let prob = Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(12, 12, 1), offset: false, seams: &[] };
     let start = initial_guess::initial_guesses(&prob).remove(0);
     for method in [SolverMethod::Lm, SolverMethod::Separable] {
         let opts = SolverOptions { method, ..SolverOptions::default() };

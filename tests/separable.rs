@@ -10,6 +10,7 @@ use oesweep::estimate::chains::{CellOutcome, PairProblem, walk_pair};
 use oesweep::estimate::normal::{Layout, NormalEquations};
 use oesweep::estimate::{self, Judge, Loss, Problem, SolverMethod, SolverOptions, Workspace, solver};
 use oesweep::oe;
+use oesweep::oe::Structure;
 
 fn separable() -> SolverOptions {
     SolverOptions { method: SolverMethod::Separable, ..SolverOptions::default() }
@@ -38,8 +39,13 @@ fn noise_free_data_recovers_the_true_parameters_from_a_poor_start() {
             let u = binary_input(n, 3, 10.0, 7);
             let mut y = oe::simulate_vec(&b, &f, 1, &u);
             y.iter_mut().for_each(|v| *v += offset.unwrap_or(0.0));
-            let prob =
-                Problem { u: &u, y: &y, nb: b.len(), nf: f.len(), delay: 1, offset: offset.is_some(), seams: &[] };
+            let prob = Problem {
+                u: &u,
+                y: &y,
+                structure: Structure::siso(b.len(), f.len(), 1),
+                offset: offset.is_some(),
+                seams: &[],
+            };
             let truth = estimate::theta_of(&b, &f, offset);
             // F's poles pulled towards the origin, B halved, no offset: the inner problem
             // must find b and c, the outer one F.
@@ -76,7 +82,7 @@ fn noise_free_data_recovers_the_true_parameters_from_a_poor_start() {
 #[test]
 fn the_linear_parameters_are_at_their_inner_optimum() {
     let (u, y) = spiky(3000, 5.0);
-    let prob = Problem { u: &u, y: &y, nb: 3, nf: 2, delay: 1, offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 2, 1), offset: true, seams: &[] };
     let mut ws = Workspace::new();
     let start = vec![0.1, 0.0, 0.0, -1.0, 0.5, 0.0];
     for loss in [Loss::LeastSquares, Loss::Huber { gamma: 0.1 }] {
@@ -88,7 +94,7 @@ fn the_linear_parameters_are_at_their_inner_optimum() {
         let mut xy = vec![0.0; u.len()];
         oe::simulate_filtered(b, f, 1, &u, &mut xu, &mut yhat, &mut xy);
         let r: Vec<f64> = y.iter().zip(&yhat).map(|(a, p)| loss.psi(a - p - c)).collect();
-        let lay = Layout { nb: 3, nf: 2, delay: 1 };
+        let lay = Layout::siso(3, 2, 1);
         let (mut h, mut g) = (vec![0.0; 36], vec![0.0; 6]);
         let mut ne = NormalEquations::default();
         ne.build(&lay, &xu, &xy, None, &r, &mut h, &mut g);
@@ -104,7 +110,7 @@ fn the_linear_parameters_are_at_their_inner_optimum() {
 #[test]
 fn the_criterion_falls_on_every_accepted_step_and_f_stays_stable() {
     let (u, y) = spiky(4000, 0.0);
-    let prob = Problem { u: &u, y: &y, nb: 4, nf: 4, delay: 1, offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(4, 4, 1), offset: false, seams: &[] };
     let mut ws = Workspace::new();
     ws.record_trace = true;
     let judge = Judge::default();
@@ -124,7 +130,7 @@ fn the_criterion_falls_on_every_accepted_step_and_f_stays_stable() {
 #[test]
 fn separable_and_full_levenberg_marquardt_agree() {
     let (u, y) = spiky(5000, 2.0);
-    let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &[] };
     let judge = Judge::default();
     let mut ws = Workspace::new();
     let lm = SolverOptions::default();
@@ -197,7 +203,7 @@ fn whole_and_head() -> [SolverOptions; 2] {
 #[test]
 fn exploring_the_starts_on_the_head_reaches_the_whole_record_minima() {
     let (u, y) = spiky(40_000, 1.0);
-    let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 3, 1), offset: true, seams: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let [whole, head] = whole_and_head();
     let a = estimate::fit_ls(&prob, &judge, &whole, &mut ws);
@@ -240,7 +246,7 @@ fn walked_cells(
 #[test]
 fn walking_the_chains_on_the_head_reaches_the_whole_record_cells() {
     let (u, y) = spiky(40_000, 1.0);
-    let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 3, 1), offset: true, seams: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let [whole, head] = whole_and_head();
     let ls = estimate::fit_ls(&prob, &judge, &whole, &mut ws);
@@ -272,7 +278,7 @@ fn walking_the_chains_on_the_head_reaches_the_whole_record_cells() {
 #[test]
 fn a_resumed_head_walk_gives_the_same_cells() {
     let (u, y) = spiky(30_000, 1.0);
-    let prob = Problem { u: &u, y: &y, nb: 3, nf: 3, delay: 1, offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 3, 1), offset: true, seams: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let [_, head] = whole_and_head();
     let ls = estimate::fit_ls(&prob, &judge, &head, &mut ws);

@@ -11,6 +11,7 @@
 
 use crate::estimate::{self, Judge, Problem, Workspace};
 use crate::job::{Inputs, ValidJob};
+use crate::oe::Structure;
 use crate::reduce::doubts::{Beyond, GridBounds};
 use crate::table::{CellRow, FitKind};
 use rayon::prelude::*;
@@ -47,8 +48,13 @@ pub fn beyond_edges(
         .into_par_iter()
         .filter_map(|(b, f)| {
             let mut ws = Workspace::new();
-            let prob =
-                Problem { u: &inputs.est.u, y: &inputs.est.y, nb: b, nf: f, delay, offset, seams: &inputs.est.seams };
+            let prob = Problem {
+                u: &inputs.est.u,
+                y: &inputs.est.y,
+                structure: Structure::siso(b, f, delay),
+                offset,
+                seams: &inputs.est.seams,
+            };
             if inputs.est.u.len() < crate::data::min_samples(b, f, delay) {
                 return None;
             }

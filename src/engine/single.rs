@@ -5,6 +5,7 @@ use crate::data::{self, ColumnRef, ReadOptions};
 use crate::error::{Error, Result};
 use crate::estimate::{self, HuberFit, InitialState, Judge, LsFit, Problem, SolverOptions, Workspace};
 use crate::job;
+use crate::oe::Structure;
 use crate::simulate;
 use crate::spectral;
 use std::path::{Path, PathBuf};
@@ -218,9 +219,7 @@ fn fit_records(
     let prob = Problem {
         u: &est.u,
         y: &est.y,
-        nb: req.nb,
-        nf: req.nf,
-        delay: req.delay,
+        structure: Structure::siso(req.nb, req.nf, req.delay),
         offset: req.offset.estimated(),
         seams: &est.seams,
     };

@@ -10,6 +10,7 @@
 use crate::estimate::least_squares::BOUNDARY;
 use crate::estimate::{self, Problem};
 use crate::job::{Inputs, Uncertainty};
+use crate::oe::Structure;
 use crate::reduce::{PickBootstrap, Rule, Selection};
 use crate::table::CellRow;
 use rayon::prelude::*;
@@ -163,7 +164,7 @@ pub fn bootstrap_picks(
                 nf: row.key.nf,
                 delay: row.key.delay,
                 k: row.k,
-                parameters: crate::export::model::parameter_names(prob.nb, prob.nf, c.is_some()),
+                parameters: crate::export::model::parameter_names(prob.one().nb, prob.one().nf, c.is_some()),
                 values: theta.clone(),
                 sandwich_std,
                 ts,
@@ -186,9 +187,7 @@ pub(super) fn problem<'a>(row: &CellRow, inputs: &'a Inputs) -> Problem<'a> {
     Problem {
         u: &inputs.est.u,
         y: &inputs.est.y,
-        nb: row.key.nb as usize,
-        nf: row.key.nf as usize,
-        delay: row.key.delay as usize,
+        structure: Structure::siso(row.key.nb as usize, row.key.nf as usize, row.key.delay as usize),
         offset: inputs.levels.mode.estimated(),
         seams: &inputs.est.seams,
     }

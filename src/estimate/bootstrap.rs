@@ -154,11 +154,11 @@ pub fn run(prob: &Problem, theta: &[f64], k: Option<f64>, settings: &Settings, o
     let mut magnitude = Vec::new();
     let mut phase_deg = Vec::new();
     for &w in &settings.frequencies {
-        let phase0 = phase(b0, f0, prob.delay, w);
+        let phase0 = phase(b0, f0, prob.one().delay, w);
         let (mut mags, mut phases) = (Vec::with_capacity(ok.len()), Vec::with_capacity(ok.len()));
         for (t, _) in &ok {
             let (b, f, _) = prob.split(t);
-            let (re, im) = oe::freq_response(b, f, prob.delay, w);
+            let (re, im) = oe::freq_response(b, f, prob.one().delay, w);
             mags.push(re.hypot(im));
             let d = (im.atan2(re).to_degrees() - phase0 + 180.0).rem_euclid(360.0) - 180.0;
             phases.push(phase0 + d);

@@ -27,7 +27,7 @@ pub(crate) fn boundary_starts(prob: &Problem, theta: &[f64]) -> Vec<(Vec<f64>, &
 
 /// True when `theta`'s largest pole radius is on the stability boundary ([`BOUNDARY`]).
 pub(crate) fn on_edge(prob: &Problem, theta: &[f64]) -> bool {
-    crate::oe::max_pole_radius(prob.split(theta).1) >= BOUNDARY
+    prob.max_pole_radius(theta) >= BOUNDARY
 }
 
 /// The rule of [`super::single::choose`] for two fits, given as (criterion, on the boundary):

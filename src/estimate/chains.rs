@@ -357,7 +357,7 @@ pub fn walk_pair(
     stopped: &dyn Fn() -> bool,
     ws: &mut Workspace,
 ) -> Option<Vec<(usize, CellOutcome)>> {
-    let (nb, nf) = (pair.prob.nb, pair.prob.nf);
+    let (nb, nf) = (pair.prob.one().nb, pair.prob.one().nf);
     // A long record walks on its head (`solver.explore_rows`), judged by nothing but its own
     // criterion, and each cell is then minimised on the whole record from there.
     let whole = pair;
@@ -448,8 +448,8 @@ pub fn walk_pair(
 /// in 2390 instead of 2412 iterations.
 fn polish_start(prob: &Problem, head_theta: &[f64], shift: Option<&[f64]>) -> Vec<f64> {
     if let Some(s) = shift {
-        let mut moved: Vec<f64> = head_theta.iter().zip(s).map(|(a, s)| a + s).collect();
-        if crate::oe::is_stable(prob.f_mut(&mut moved)) {
+        let moved: Vec<f64> = head_theta.iter().zip(s).map(|(a, s)| a + s).collect();
+        if prob.is_stable(&moved) {
             return moved;
         }
     }
@@ -467,14 +467,8 @@ fn same_point(a: &[f64], b: &[f64]) -> bool {
 /// lower (one simulation of each into the workspace's trial output; the solver's buffers are
 /// untouched). A prediction can overshoot where the minimum's path bends; the point is then
 /// the better start.
-fn lower_start(
-    prob: &Problem,
-    loss: Loss,
-    mut candidate: Vec<f64>,
-    point: &[f64],
-    ws: &mut Workspace,
-) -> Option<Vec<f64>> {
-    if !crate::oe::is_stable(prob.f_mut(&mut candidate)) {
+fn lower_start(prob: &Problem, loss: Loss, candidate: Vec<f64>, point: &[f64], ws: &mut Workspace) -> Option<Vec<f64>> {
+    if !prob.is_stable(&candidate) {
         return None;
     }
     ws.trial_yhat.resize(prob.n(), 0.0);

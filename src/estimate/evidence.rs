@@ -109,8 +109,7 @@ pub fn evidence(
     let slope = slope(prob, loss, yhat);
     let d = prob.dim();
     let cov = covariance_in(prob, xu, xy, slope, s);
-    let (tb, tf, _) = prob.split(theta);
-    let cancellations = cov.as_ref().and_then(|c| super::cancellation::cancelling_pairs(tb, tf, c, d));
+    let cancellations = cov.as_ref().and_then(|c| cancellations(prob, theta, c));
     let std: Vec<f64> = match cov {
         Some(cov) => (0..d)
             .map(|i| {
@@ -120,8 +119,8 @@ pub fn evidence(
             .collect(),
         None => vec![f64::INFINITY; d],
     };
-    let (b, rest) = std.split_at(prob.nb);
-    let (f, c) = rest.split_at(prob.nf);
+    let (b, f) = super::problem::flat_parts(&prob.structure, &std);
+    let c = &std[prob.structure.dim()..];
     let max_rel_std = std
         .iter()
         .zip(theta)
@@ -129,21 +128,45 @@ pub fn evidence(
         .fold(0.0, |m: f64, v| if v.is_nan() { f64::INFINITY } else { m.max(v) });
     centre_into(&s.r, &mut s.e);
     let m = MAX_LAG.min(n.saturating_sub(2));
-    s.input(prob.u, prob.seams, m);
+    // Independence from every input; the least independent one is reported.
     let (mut ree, mut reu) = ([0.0; MAX_LAG + 1], [0.0; MAX_LAG + 1]);
     let (ree, reu) = (&mut ree[..m + 1], &mut reu[..m + 1]);
-    residual_correlations(&s.e, &s.uc, prob.seams, ree, reu);
+    let mut indep = f64::INFINITY;
+    for i in 0..prob.m() {
+        s.input(prob.input(i), prob.seams, m);
+        residual_correlations(&s.e, &s.uc, prob.seams, ree, reu);
+        indep = indep.min(independence_p(reu, ree[0], n, &s.ruu));
+    }
     Evidence {
-        b_std: b.to_vec(),
-        f_std: f.to_vec(),
+        b_std: b,
+        f_std: f,
         offset_std: c.first().copied(),
         // An infinite ratio (an undetermined parameter) is a finding; a NaN or a non-finite
         // p-value is not a number to report.
         max_rel_std: Some(max_rel_std).filter(|v| !v.is_nan()),
         resid_white_p: Some(whiteness_p(ree, n)).filter(|v| v.is_finite()),
-        resid_indep_p: Some(independence_p(reu, ree[0], n, &s.ruu)).filter(|v| v.is_finite()),
+        resid_indep_p: Some(indep).filter(|v| v.is_finite()),
         cancellations,
     }
+}
+
+/// Pole-zero cancellations summed over the inputs, each input's B_i and F_i judged with their
+/// own block of the covariance `cov` (d x d).
+fn cancellations(prob: &Problem, theta: &[f64], cov: &[f64]) -> Option<u32> {
+    let d = prob.dim();
+    if prob.m() == 1 {
+        let (b, f, _) = prob.split(theta);
+        return super::cancellation::cancelling_pairs(b, f, cov, d);
+    }
+    let mut total = 0;
+    for i in 0..prob.m() {
+        let (b, f) = prob.input_parts(theta, i);
+        let idx: Vec<usize> = prob.structure.b_range(i).chain(prob.structure.f_range(i)).collect();
+        let k = idx.len();
+        let block: Vec<f64> = idx.iter().flat_map(|&r| idx.iter().map(move |&c| cov[r * d + c])).collect();
+        total += super::cancellation::cancelling_pairs(b, f, &block, k)?;
+    }
+    Some(total)
 }
 
 /// `mean psi_g'(e)`: 1 for least squares, the share of the L2 set for Huber.
@@ -169,10 +192,9 @@ fn covariance_in(prob: &Problem, xu: &[f64], xy: &[f64], slope: f64, s: &mut Scr
 /// singular.
 pub fn covariance(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64]) -> Option<Vec<f64>> {
     let r: Vec<f64> = prob.y.iter().zip(yhat).map(|(y, yh)| loss.psi(y - yh)).collect();
-    let (b, f, _) = prob.split(theta);
-    let n = prob.n();
-    let (mut xu, mut yh, mut xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    prob.simulate_filtered(b, f, &mut xu, &mut yh, &mut xy);
+    let (n, m) = (prob.n(), prob.m());
+    let (mut xu, mut yh, mut xy) = (vec![0.0; m * n], vec![0.0; n], vec![0.0; m * n]);
+    prob.simulate_filtered(theta, &mut xu, &mut yh, &mut xy);
     let d = prob.dim();
     let (mut h, mut g) = (vec![0.0; d * d], vec![0.0; d]);
     let slope = slope(prob, loss, yhat);
@@ -349,6 +371,8 @@ pub fn gain_std(b: &[f64], f: &[f64], delay: usize, cov: &[f64], w: f64) -> (f64
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimate::fit::theta_of;
+    use crate::oe::Structure;
 
     /// The QR path (taken when the formed Gram matrix is ill-conditioned) inverts the same
     /// matrix as the Cholesky path, also on a record of several experiments with an offset:
@@ -366,10 +390,10 @@ mod tests {
             .collect();
         let y = vec![0.0; n];
         for seams in [vec![], vec![700, 2100]] {
-            let prob = Problem { u: &u, y: &y, nb: 2, nf: 2, delay: 1, offset: true, seams: &seams };
+            let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &seams };
             let (b, f) = ([1.0, 0.5], [-0.6, 0.2]);
             let (mut xu, mut yh, mut xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-            prob.simulate_filtered(&b, &f, &mut xu, &mut yh, &mut xy);
+            prob.simulate_filtered(&theta_of(&b, &f, None), &mut xu, &mut yh, &mut xy);
             let d = prob.dim();
             let (mut h, mut g, r) = (vec![0.0; d * d], vec![0.0; d], vec![0.0; n]);
             NormalEquations::default().build_all(&prob.layout(), true, &seams, &xu, &xy, None, &r, &mut h, &mut g);

@@ -7,9 +7,10 @@ use super::huber::{self, Loss};
 use super::initial_state::{self, InitialState};
 use super::options::{SolverOptions, Termination};
 use super::problem::{Problem, Solution};
+use super::problem::{flat_parts, theta_in};
 use super::solver;
 use super::workspace::Workspace;
-use crate::oe;
+use crate::oe::Structure;
 use crate::profile::{Phase, Span};
 use crate::spectral::SpectralEstimate;
 
@@ -44,11 +45,12 @@ impl Judge<'_> {
         yhat: &mut [f64],
         s: &mut initial_state::Scratch,
     ) {
-        if self.initial_state == InitialState::Estimate {
+        // Several inputs: zero initial state only (the boundary refuses `estimate` for them).
+        if self.initial_state == InitialState::Estimate && prob.m() == 1 {
             let (b, f, _) = prob.split(theta);
             // One initial state per experiment.
             for e in prob.experiments() {
-                initial_state::add_free_response_in(f, b.len(), prob.delay, &y[e.clone()], &mut yhat[e], s);
+                initial_state::add_free_response_in(f, b.len(), prob.one().delay, &y[e.clone()], &mut yhat[e], s);
             }
         }
     }
@@ -138,14 +140,14 @@ pub struct Assessment {
 
 impl Assessment {
     /// The assessment of a fit that is not judged ([`Judge::criterion_only`]).
-    fn unjudged(f: &[f64]) -> Self {
+    fn unjudged(max_pole_radius: f64) -> Self {
         Assessment {
             fit: f64::NAN,
             fit_val: None,
             fit_band: None,
             fit_exp: None,
             fit_val_exp: None,
-            max_pole_radius: oe::max_pole_radius(f),
+            max_pole_radius,
             evidence: evidence::Evidence::default(),
         }
     }
@@ -156,12 +158,11 @@ impl Assessment {
 fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: &Judge) -> Assessment {
     let profile = ws.profile.clone();
     let judging = Span::start(profile.as_deref(), Phase::Judge);
-    let (b, f, _) = prob.split(theta);
     let mut fit_val_exp = None;
     let fit_val = judge.validation.map(|(u, y)| {
         let val = Problem { u, y, seams: judge.validation_seams, ..*prob };
         let judged = &mut ws.judged_val;
-        judged.resize(u.len(), 0.0);
+        judged.resize(y.len(), 0.0);
         val.simulate(theta, judged);
         judge.judge_output(&val, theta, y, judged, &mut ws.free_response);
         fit_val_exp = fit_per_experiment(&val, y, judged);
@@ -172,7 +173,11 @@ fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: 
     judge.judge_output(prob, theta, prob.y, &mut ws.judged, &mut ws.free_response);
     let fit = fit_percent(prob.y, &ws.judged);
     let fit_exp = fit_per_experiment(prob, prob.y, &ws.judged);
-    let fit_band = judge.band.and_then(|(est, bins)| crate::spectral::band_fit(est, bins, b, f, prob.delay));
+    // The band fit compares one input's response with a one-input spectral estimate.
+    let fit_band = judge.band.filter(|_| prob.m() == 1).and_then(|(est, bins)| {
+        let (b, f, _) = prob.split(theta);
+        crate::spectral::band_fit(est, bins, b, f, prob.one().delay)
+    });
     drop(judging);
     let _evidence = Span::start(profile.as_deref(), Phase::Evidence);
     Assessment {
@@ -181,7 +186,7 @@ fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: 
         fit_band: fit_band.filter(|v| v.is_finite()),
         fit_exp,
         fit_val_exp,
-        max_pole_radius: oe::max_pole_radius(f),
+        max_pole_radius: prob.max_pole_radius(theta),
         evidence: evidence::evidence(prob, theta, loss, &ws.yhat, &ws.xu, &ws.xy, &mut ws.evidence),
     }
 }
@@ -189,9 +194,12 @@ fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: 
 /// The least-squares (L2) fit of an order pair and the scale sigma it provides.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct LsFit {
+    /// One input's orders (several inputs: input 1's; `structure` has them all).
     pub nb: usize,
     pub nf: usize,
     pub delay: usize,
+    #[serde(skip)]
+    pub structure: Structure,
     /// `(1/N) sum e^2 / 2`.
     pub criterion: f64,
     /// Standard deviation of the residuals (ddof = 0).
@@ -201,6 +209,8 @@ pub struct LsFit {
     pub iterations: usize,
     pub termination: Termination,
     pub reflections: usize,
+    /// B's coefficients and F's ([`Parameters`]: with several inputs, every input's one after
+    /// the other).
     pub b: Vec<f64>,
     pub f: Vec<f64>,
     /// The estimated output offset c (None when the model has none, [`Problem::offset`]).
@@ -219,13 +229,14 @@ pub struct LsFit {
 /// `theta` of the sub-model (`nb`, `nf`) of `prob`'s structure (same delay and offset mode) as
 /// `prob`'s parameters: the same model, with zero trailing coefficients in B and F.
 pub fn embed(theta: &[f64], nb: usize, nf: usize, prob: &Problem) -> Vec<f64> {
-    assert!(nb <= prob.nb && nf <= prob.nf, "OE({nb},{nf}) is no sub-model of OE({},{})", prob.nb, prob.nf);
+    let big = prob.one();
+    assert!(nb <= big.nb && nf <= big.nf, "OE({nb},{nf}) is no sub-model of OE({},{})", big.nb, big.nf);
     assert_eq!(theta.len(), nb + nf + usize::from(prob.offset));
     let mut out = vec![0.0; prob.dim()];
     out[..nb].copy_from_slice(&theta[..nb]);
-    out[prob.nb..prob.nb + nf].copy_from_slice(&theta[nb..nb + nf]);
+    out[big.nb..big.nb + nf].copy_from_slice(&theta[nb..nb + nf]);
     if prob.offset {
-        out[prob.nb + prob.nf] = theta[nb + nf];
+        out[big.nb + big.nf] = theta[nb + nf];
     }
     out
 }
@@ -237,7 +248,7 @@ pub fn theta_of(b: &[f64], f: &[f64], offset: Option<f64>) -> Vec<f64> {
 
 impl LsFit {
     pub fn theta(&self) -> Vec<f64> {
-        theta_of(&self.b, &self.f, self.offset)
+        theta_in(&self.structure, &self.b, &self.f, self.offset)
     }
     /// True when the numbers are usable (finite criterion and parameters).
     pub fn ok(&self) -> bool {
@@ -266,11 +277,13 @@ pub struct HuberFit {
     /// Robust AIC and BIC of this fit ([`super::criteria::robust`]).
     #[serde(flatten)]
     pub criteria: super::criteria::Robust,
+    #[serde(skip)]
+    pub structure: Structure,
 }
 
 impl HuberFit {
     pub fn theta(&self) -> Vec<f64> {
-        theta_of(&self.b, &self.f, self.offset)
+        theta_in(&self.structure, &self.b, &self.f, self.offset)
     }
 }
 
@@ -286,9 +299,11 @@ pub(crate) fn huber_from_solution(
     resimulate: bool,
 ) -> HuberFit {
     let gamma = k * sigma;
-    let (b, f, c) = prob.split(&sol.theta);
+    let (b, f) = flat_parts(&prob.structure, &sol.theta);
+    let c = prob.offset_of(&sol.theta);
     let (l1c, assessment, criteria) = if judge.criterion_only {
-        (f64::NAN, Assessment::unjudged(f), super::criteria::Robust { raic: f64::NAN, rbic: f64::NAN })
+        let radius = prob.max_pole_radius(&sol.theta);
+        (f64::NAN, Assessment::unjudged(radius), super::criteria::Robust { raic: f64::NAN, rbic: f64::NAN })
     } else {
         if resimulate {
             ws.resimulate(prob, &sol.theta);
@@ -308,10 +323,11 @@ pub(crate) fn huber_from_solution(
         iterations: sol.iterations,
         termination: sol.termination,
         reflections: sol.reflections,
-        b: b.to_vec(),
-        f: f.to_vec(),
+        b,
+        f,
         offset: prob.offset.then_some(c),
         criteria,
+        structure: prob.structure,
     }
 }
 
@@ -338,11 +354,14 @@ fn ls_fit(prob: &Problem, sol: Solution, judge: &Judge, ws: &mut Workspace) -> L
     let n = prob.n() as f64;
     let mean_e = prob.y.iter().zip(yhat).map(|(a, b)| a - b).sum::<f64>() / n;
     let var = prob.y.iter().zip(yhat).map(|(a, b)| (a - b - mean_e).powi(2)).sum::<f64>() / n;
-    let (b, f, c) = prob.split(&sol.theta);
+    let (b, f) = flat_parts(&prob.structure, &sol.theta);
+    let c = prob.offset_of(&sol.theta);
+    let first = prob.structure.inputs()[0];
     LsFit {
-        nb: prob.nb,
-        nf: prob.nf,
-        delay: prob.delay,
+        nb: first.nb,
+        nf: first.nf,
+        delay: first.delay,
+        structure: prob.structure,
         criterion: sol.criterion,
         sigma: var.sqrt(),
         assessment: assess(prob, &sol.theta, Loss::LeastSquares, ws, judge),

@@ -9,7 +9,6 @@
 //! output-error criterion is returned.
 
 use super::problem::Problem;
-use crate::oe;
 use faer::Mat;
 
 /// Entry (t, c) of the regressor matrix with columns `[u_{t-d-i+1}]_{i=1..nb}` and
@@ -17,7 +16,7 @@ use faer::Mat;
 /// `y = B u - sum f_j y_{t-j} + F(1) c`, linear in `F(1) c`. Column `dim` is `y_t` itself
 /// (the right-hand side rides along as one more column).
 pub(super) fn regressor(prob: &Problem, s2: &[f64], t: usize, c: usize) -> f64 {
-    let (nb, nf, delay) = (prob.nb, prob.nf, prob.delay);
+    let (nb, nf, delay) = (prob.one().nb, prob.one().nf, prob.one().delay);
     // No lag reaches back across the start of the experiment t belongs to.
     let t0 = prob.experiment_start(t);
     if c < nb {
@@ -74,8 +73,8 @@ pub(super) fn cross_product(
 /// The regression's last coefficient `F(1) c` as the offset c (F is stable, so F(1) > 0).
 fn offset_from_regression(prob: &Problem, theta: &mut [f64]) {
     if prob.offset {
-        let f1 = 1.0 + theta[prob.nb..prob.nb + prob.nf].iter().sum::<f64>();
-        theta[prob.nb + prob.nf] /= f1;
+        let f1 = 1.0 + theta[prob.one().nb..prob.one().nb + prob.one().nf].iter().sum::<f64>();
+        theta[prob.one().nb + prob.one().nf] /= f1;
     }
 }
 
@@ -98,7 +97,7 @@ pub fn arx(prob: &Problem) -> Option<Vec<f64>> {
     if !finite(&theta) {
         return None;
     }
-    oe::reflect_unstable(prob.f_mut(&mut theta));
+    prob.reflect_unstable(&mut theta);
     offset_from_regression(prob, &mut theta);
     Some(theta)
 }
@@ -120,7 +119,7 @@ fn iv_step(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
     if !finite(&th) {
         return None;
     }
-    oe::reflect_unstable(prob.f_mut(&mut th));
+    prob.reflect_unstable(&mut th);
     offset_from_regression(prob, &mut th);
     Some(th)
 }
@@ -132,11 +131,14 @@ fn iv_step(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
 ///
 /// With an output offset ([`Problem::offset`]) the regressions carry a constant column.
 pub fn initial_guesses(prob: &Problem) -> Vec<Vec<f64>> {
+    if prob.m() > 1 {
+        return vec![backfit(prob)];
+    }
     let mut out = Vec::new();
     if let Some(a) = arx(prob) {
         let mut cur = a.clone();
         out.push(a);
-        if prob.nf > 0 {
+        if prob.one().nf > 0 {
             let mut refined = None;
             for _ in 0..2 {
                 match iv_step(prob, &cur) {
@@ -154,4 +156,51 @@ pub fn initial_guesses(prob: &Problem) -> Vec<Vec<f64>> {
         out.push(vec![0.0; prob.dim()]);
     }
     out
+}
+
+/// Backfitting rounds of [`backfit`]: the peer's count (`../shared/peer/peer_miso.py`); the
+/// least-squares fit that follows does the rest.
+const BACKFIT_ROUNDS: usize = 3;
+
+/// The start of several inputs: each input's one-input start (the best of ARX and IV by its
+/// output error) fitted to the output less the other inputs' current contributions, input
+/// after input, [`BACKFIT_ROUNDS`] times. A common ARX denominator of every input need not
+/// factor into the F_i; this gives every F_i a stable start of its own. The offset is the
+/// last input's fit's.
+fn backfit(prob: &Problem) -> Vec<f64> {
+    let (n, m) = (prob.n(), prob.m());
+    let mut theta = vec![0.0; prob.dim()];
+    let mut contribution = vec![vec![0.0; n]; m];
+    let mut target = vec![0.0; n];
+    for _ in 0..BACKFIT_ROUNDS {
+        for i in 0..m {
+            for (t, v) in target.iter_mut().enumerate() {
+                *v = prob.y[t] - (0..m).filter(|&j| j != i).map(|j| contribution[j][t]).sum::<f64>();
+            }
+            let o = prob.structure.inputs()[i];
+            let one = Problem {
+                u: prob.input(i),
+                y: &target,
+                structure: crate::oe::Structure::siso(o.nb, o.nf, o.delay),
+                offset: prob.offset,
+                seams: prob.seams,
+            };
+            let sse = |th: &[f64]| {
+                let e: f64 = one.simulate_vec(th).iter().zip(&target).map(|(a, b)| (a - b) * (a - b)).sum();
+                if e.is_finite() { e } else { f64::INFINITY }
+            };
+            let Some(best) = initial_guesses(&one).into_iter().min_by(|a, b| sse(a).total_cmp(&sse(b))) else {
+                continue;
+            };
+            let (b, f, c) = one.split(&best);
+            theta[prob.structure.b_range(i)].copy_from_slice(b);
+            theta[prob.structure.f_range(i)].copy_from_slice(f);
+            if prob.offset {
+                theta[prob.structure.dim()] = c;
+            }
+            let plain = Problem { offset: false, ..one };
+            plain.simulate(&crate::estimate::theta_of(b, f, None), &mut contribution[i]);
+        }
+    }
+    theta
 }

@@ -58,6 +58,7 @@ use super::initial_state::add_free_response;
 use super::least_squares::BOUNDARY;
 use super::problem::Problem;
 use crate::oe;
+use crate::oe::Structure;
 use faer::Mat;
 
 /// The samples a record is tested on at most (its head): time constants up to about a tenth of
@@ -117,7 +118,7 @@ pub fn pole_test(u: &[f64], y: &[f64], seams: &[usize], delay: usize) -> Option<
     let seams = &seams[..];
     let fits: Vec<(Problem, IvFit)> = (1..=ORDER)
         .filter_map(|n| {
-            let prob = Problem { u, y, nb: n, nf: n, delay, offset: true, seams };
+            let prob = Problem { u, y, structure: Structure::siso(n, n, delay), offset: true, seams };
             let from_arx = arx(&prob).and_then(|a| iv_fit(&prob, a[..2 * n].to_vec()));
             let mut slow = vec![0.0; 2 * n];
             slow[0] = 1.0;
@@ -151,7 +152,7 @@ struct IvFit {
 }
 
 fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
-    let (n, d, nbf) = (prob.n(), prob.dim(), prob.nb + prob.nf);
+    let (n, d, nbf) = (prob.n(), prob.dim(), prob.one().nb + prob.one().nf);
     let lags = lags(prob);
     let rows = (0..n).filter(|&t| complete(prob, lags, t)).count();
     if rows <= 4 * d {
@@ -166,7 +167,7 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
     let mut scale = f64::INFINITY;
     let dd = extended_dim(prob);
     let mut theta = vec![0.0; dd];
-    let mut filter = model[prob.nb..].to_vec();
+    let mut filter = model[prob.one().nb..].to_vec();
     capped(&mut filter);
     let (mut instruments, mut used) = (model.clone(), filter.clone());
     for _ in 0..PASSES {
@@ -201,8 +202,8 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
         });
         scale = robust_scale(&eps, |t| complete(prob, lags, t));
         model.copy_from_slice(&theta[..nbf]);
-        oe::reflect_unstable(prob.f_mut(&mut model));
-        filter.copy_from_slice(&model[prob.nb..]);
+        prob.reflect_unstable(&mut model);
+        filter.copy_from_slice(&model[prob.one().nb..]);
         capped(&mut filter);
     }
     Some(IvFit { theta, instruments, filter: used, scale, rows })
@@ -229,7 +230,8 @@ fn a_at_1_variance(prob: &Problem, fit: &IvFit) -> Option<f64> {
             }
         }
     });
-    let ones = Mat::from_fn(dd, 1, |i, _| f64::from(u8::from((prob.nb..prob.nb + prob.nf).contains(&i))));
+    let ones =
+        Mat::from_fn(dd, 1, |i, _| f64::from(u8::from((prob.one().nb..prob.one().nb + prob.one().nf).contains(&i))));
     let v = crate::dense::Lu::new(g.transpose()).solve(ones.as_ref());
     let lag = (4.0 * (fit.rows as f64 / 100.0).powf(2.0 / 9.0)).floor().max(1.0) as usize;
     // The complete rows of an experiment are consecutive: one run of h per experiment.
@@ -291,7 +293,7 @@ fn capped(f: &mut [f64]) {
 
 /// The largest lag of the model's rows.
 fn lags(prob: &Problem) -> usize {
-    (prob.delay + prob.nb - 1).max(prob.nf)
+    (prob.one().delay + prob.one().nb - 1).max(prob.one().nf)
 }
 
 /// Whether row t has all its lags inside its own experiment.
@@ -351,7 +353,7 @@ fn filtered_rows(prob: &Problem, x: &[f64], f: &[f64], lags: usize, mut each: im
 /// Columns of the filtered regression: the model's d, nF pulses per experiment and a
 /// constant for each experiment after the first (experiments may sit at different levels).
 fn extended_dim(prob: &Problem) -> usize {
-    prob.dim() + (prob.nf + 1) * (prob.seams.len() + 1) - 1
+    prob.dim() + (prob.one().nf + 1) * (prob.seams.len() + 1) - 1
 }
 
 /// `min(1, k s / |v|)`: the IRLS weight of Huber's psi (1 while there is no scale yet).
@@ -375,7 +377,7 @@ fn robust_scale(v: &[f64], complete: impl Fn(usize) -> bool) -> f64 {
 
 /// The test of `fit`: A(1) against 0, reported at the slowest pole.
 fn test_poles(prob: &Problem, fit: &IvFit) -> Option<PoleTest> {
-    let (nb, nf) = (prob.nb, prob.nf);
+    let (nb, nf) = (prob.one().nb, prob.one().nf);
     let a = &fit.theta[nb..nb + nf];
     let poles = oe::poles(a);
     let slowest = (0..poles.len())
@@ -425,7 +427,7 @@ pub fn residual_drift(prob: &Problem, theta: &[f64]) -> f64 {
     let mut r = prob.simulate_vec(theta);
     let (b, f, _) = prob.split(theta);
     for x in prob.experiments() {
-        add_free_response(f, b.len(), prob.delay, &prob.y[x.clone()], &mut r[x]);
+        add_free_response(f, b.len(), prob.one().delay, &prob.y[x.clone()], &mut r[x]);
     }
     r.iter_mut().zip(prob.y).for_each(|(r, y)| *r = y - *r);
     drift_statistic(&r, prob.seams)

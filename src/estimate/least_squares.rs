@@ -108,7 +108,7 @@ pub fn finish_ls(
     // On the stability boundary the Huber fit cannot move the near-unit pole (1/F has an
     // almost infinite memory there), while a start just inside often reaches a much lower W.
     let theta = &best.theta;
-    let radius = crate::oe::max_pole_radius(prob.split(theta).1);
+    let radius = prob.max_pole_radius(theta);
     if opts.huber_extra_starts > 0 && radius > BOUNDARY && radius.is_finite() {
         alternatives.push(contracted(prob, theta));
     }
@@ -122,7 +122,8 @@ pub fn finish_ls(
 /// explored.
 pub fn exploration_head<'a>(prob: &Problem<'a>, opts: &SolverOptions) -> Option<Problem<'a>> {
     let rows = opts.explore_rows;
-    (rows > 0 && prob.n() >= HEAD_SHARE * rows).then(|| prob.head(rows))
+    // Several inputs sit input after input: a head would copy them (not done yet).
+    (rows > 0 && prob.m() == 1 && prob.n() >= HEAD_SHARE * rows).then(|| prob.head(rows))
 }
 
 /// A record explores on a head only when it is at least this many heads long. Exploring on
@@ -227,11 +228,13 @@ pub const CONTRACTED: f64 = 0.99;
 /// boundary of a fit that ended on it.
 pub fn contracted(prob: &Problem, theta: &[f64]) -> Vec<f64> {
     let mut c = theta.to_vec();
-    let radius = crate::oe::max_pole_radius(prob.split(theta).1);
+    let radius = prob.max_pole_radius(theta);
     if radius > CONTRACTED && radius.is_finite() {
         let rho = CONTRACTED / radius;
-        for (j, v) in prob.f_mut(&mut c).iter_mut().enumerate() {
-            *v *= rho.powi(j as i32 + 1);
+        for i in 0..prob.m() {
+            for (j, v) in c[prob.structure.f_range(i)].iter_mut().enumerate() {
+                *v *= rho.powi(j as i32 + 1);
+            }
         }
     }
     c

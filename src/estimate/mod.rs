@@ -16,8 +16,9 @@
 //! cancellation   pole-zero pairs within their confidence       oe
 //! linalg         Cholesky of the normal equations              (none)
 //! huber          rho, psi, L1C                                  (none)
-//! normal         normal equations from lagged correlations     kernels
-//! problem        record + structure, Solution                  options, normal, oe
+//! layout         the Jacobian's columns: sequence, sign, lag   (none)
+//! normal         normal equations from lagged correlations     kernels, layout
+//! problem        record + structure, Solution, theta's parts   options, layout, oe
 //! initial_state  free response, model output                   linalg
 //! initial_guess  ARX + IV starts                                problem
 //! integrating    the record's integrating-plant test (IV pole)  problem, initial_guess, initial_state, least_squares
@@ -45,6 +46,7 @@ pub mod huber;
 pub mod initial_guess;
 pub mod initial_state;
 pub mod integrating;
+pub mod layout;
 pub mod least_squares;
 pub mod linalg;
 pub mod normal;
@@ -66,5 +68,6 @@ pub use initial_state::InitialState;
 pub use least_squares::{OwnMinima, exploration_head, finish_ls, fit_ls, fit_ls_nested, own_minima};
 pub use options::{HuberHessian, SolverMethod, SolverOptions, Termination};
 pub use problem::{Problem, Solution};
+pub use problem::{flat_parts, theta_in};
 pub use single::{OneFit, fit_one};
 pub use workspace::Workspace;

@@ -17,61 +17,8 @@
 //! rows are reweighted the sum is instead taken directly over the rows with `w_t > 0`, which
 //! keeps the cost at O(N d + min(#reweighted, N) d^2) and avoids cancellation.
 
-/// Which sequence a Jacobian column is a shift of.
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
-enum Seq {
-    U,
-    Y,
-}
-
-/// Column structure of the OE Jacobian for given orders.
-#[derive(Clone, Copy, Debug)]
-pub struct Layout {
-    pub nb: usize,
-    pub nf: usize,
-    pub delay: usize,
-}
-
-impl Layout {
-    pub fn dim(&self) -> usize {
-        self.nb + self.nf
-    }
-
-    /// The lag of column `c` (`d + i` for b_i, `j` for f_j).
-    pub fn lag(&self, c: usize) -> usize {
-        self.col(c).2
-    }
-
-    #[inline(always)]
-    fn col(&self, c: usize) -> (Seq, f64, usize) {
-        if c < self.nb { (Seq::U, 1.0, self.delay + c) } else { (Seq::Y, -1.0, c - self.nb + 1) }
-    }
-
-    /// Write column `c` of the Jacobian (c < [`Layout::dim`]) at times `start..start + out.len()`,
-    /// times `factor`, into `out`.
-    pub fn column_into(&self, xu: &[f64], xy: &[f64], c: usize, start: usize, factor: f64, out: &mut [f64]) {
-        let (seq, sign, lag) = self.col(c);
-        let x = if seq == Seq::U { xu } else { xy };
-        let f = sign * factor;
-        for (k, o) in out.iter_mut().enumerate() {
-            let t = start + k;
-            *o = if t >= lag { f * x[t - lag] } else { 0.0 };
-        }
-    }
-
-    /// Write `psi_t` (the Jacobian row of the predictor at time t) into `row`.
-    #[inline(always)]
-    pub fn row(&self, xu: &[f64], xy: &[f64], t: usize, row: &mut [f64]) {
-        for (i, r) in row[..self.nb].iter_mut().enumerate() {
-            let lag = self.delay + i;
-            *r = if t >= lag { xu[t - lag] } else { 0.0 };
-        }
-        for (j, r) in row[self.nb..self.nb + self.nf].iter_mut().enumerate() {
-            let lag = j + 1;
-            *r = if t >= lag { -xy[t - lag] } else { 0.0 };
-        }
-    }
-}
+pub use super::layout::Layout;
+use super::layout::Seq;
 
 /// `rows[..m]` <- the t with `w[t] != skip`, and `alpha[..m]` (if given) <- those `w[t]`;
 /// returns m. Both keep their length (`w.len() + 3`, the kernel's scratch) from call to call:
@@ -161,6 +108,9 @@ impl NormalEquations {
         h: &mut [f64],
         g: &mut [f64],
     ) {
+        if lay.structure.m() > 1 {
+            return self.build_rows(lay, offset, seams, xu, xy, w, r, h, g);
+        }
         if seams.is_empty() {
             self.build(lay, xu, xy, w, r, h, g);
             if offset {
@@ -417,6 +367,79 @@ impl NormalEquations {
         }
     }
 
+    /// The normal equations of several inputs, offset and seams included, from the Jacobian's
+    /// rows: `g` over every row, `h` over the rows with a weight, packed in blocks for one
+    /// matrix product each. O(N d^2) where one input's lagged correlations are O(N d); a
+    /// correlation form over every pair of the 2m sequences is the step after this one
+    /// (docs/ARCHITECTURE.md, "Several inputs").
+    #[allow(clippy::too_many_arguments)]
+    fn build_rows(
+        &mut self,
+        lay: &Layout,
+        offset: bool,
+        seams: &[usize],
+        xu: &[f64],
+        xy: &[f64],
+        w: Option<&[f64]>,
+        r: &[f64],
+        h: &mut [f64],
+        g: &mut [f64],
+    ) {
+        let n = r.len();
+        let d0 = lay.dim();
+        let d = d0 + usize::from(offset);
+        let dp = d.div_ceil(4) * 4;
+        let inv_n = 1.0 / n as f64;
+        h[..d * d].fill(0.0);
+        g[..d].fill(0.0);
+        self.packed.resize(PACK_BLOCK * dp, 0.0);
+        self.scaled.resize(PACK_BLOCK * dp, 0.0);
+        self.psi.resize(dp, 0.0);
+        let mut mb = 0;
+        let mut seam = 0;
+        let mut t0 = 0;
+        for t in 0..n {
+            while seam < seams.len() && seams[seam] <= t {
+                t0 = seams[seam];
+                seam += 1;
+            }
+            let row = &mut self.packed[mb * dp..(mb + 1) * dp];
+            lay.row_from(xu, xy, t, t0, &mut row[..d0]);
+            if offset {
+                row[d0] = 1.0;
+            }
+            row[d..].fill(0.0);
+            for (gc, &p) in g[..d].iter_mut().zip(&row[..d]) {
+                *gc += p * r[t];
+            }
+            let a = w.map_or(1.0, |w| w[t]);
+            if a == 0.0 {
+                continue;
+            }
+            for (q, &p) in self.scaled[mb * dp..(mb + 1) * dp].iter_mut().zip(&self.packed[mb * dp..(mb + 1) * dp]) {
+                *q = a * p;
+            }
+            mb += 1;
+            if mb == PACK_BLOCK || t + 1 == n {
+                crate::kernels::syrk_upper(h, d, &self.packed[..mb * dp], &self.scaled[..mb * dp], dp, mb, 1.0);
+                mb = 0;
+            }
+        }
+        if mb > 0 {
+            crate::kernels::syrk_upper(h, d, &self.packed[..mb * dp], &self.scaled[..mb * dp], dp, mb, 1.0);
+        }
+        for gc in &mut g[..d] {
+            *gc *= inv_n;
+        }
+        for i in 0..d {
+            for j in i..d {
+                let v = h[i * d + j] * inv_n;
+                h[i * d + j] = v;
+                h[j * d + i] = v;
+            }
+        }
+    }
+
     /// Upper triangle of the unweighted `J^T J` from lagged dot products (no 1/N).
     fn gram(&mut self, lay: &Layout, xu: &[f64], xy: &[f64], h: &mut [f64]) {
         let n = xu.len();
@@ -500,7 +523,7 @@ mod tests {
             (4, 0, 0, 30),
             (5, 9, 2, 12),
         ] {
-            let lay = Layout { nb, nf, delay };
+            let lay = Layout::siso(nb, nf, delay);
             let (xu, xy, r) = seqs(n);
             let d = lay.dim();
             // few reweighted rows (correction path), many (direct path), none; IRLS-like

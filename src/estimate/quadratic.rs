@@ -27,7 +27,6 @@ use super::evidence;
 use super::huber::Loss;
 use super::least_squares::BOUNDARY;
 use super::problem::Problem;
-use crate::oe;
 
 /// Curvature ratios inside this band count as quadratic. A factor 2 in curvature is a factor
 /// sqrt(2) in a standard deviation; wider means the reported std is wrong by more than that.
@@ -139,7 +138,7 @@ pub fn check(prob: &Problem, theta: &[f64], loss: Loss, cov: &[f64]) -> Quadrati
             for (j, p) in point.iter_mut().enumerate() {
                 *p = theta[j] + sign * len * vecs[(j, i)];
             }
-            if !oe::is_stable(prob.split(&point).1) {
+            if !prob.is_stable(&point) {
                 out.unstable += 1;
                 rise[side] = f64::INFINITY;
                 continue;

@@ -60,19 +60,19 @@ pub struct Inner {
 
 /// The inner linear parameters' count: nB, plus one with an offset.
 fn linear_dim(prob: &Problem) -> usize {
-    prob.nb + usize::from(prob.offset)
+    prob.one().nb + usize::from(prob.offset)
 }
 
 /// `theta`'s beta = [b, c] (b first, c last in theta; F untouched) as one vector view.
 fn beta_get(prob: &Problem, theta: &[f64], i: usize) -> f64 {
-    if i < prob.nb { theta[i] } else { theta[prob.nb + prob.nf] }
+    if i < prob.one().nb { theta[i] } else { theta[prob.one().nb + prob.one().nf] }
 }
 
 fn beta_add(prob: &Problem, theta: &mut [f64], i: usize, v: f64) {
-    if i < prob.nb {
+    if i < prob.one().nb {
         theta[i] += v;
     } else {
-        theta[prob.nb + prob.nf] += v;
+        theta[prob.one().nb + prob.one().nf] += v;
     }
 }
 
@@ -81,9 +81,9 @@ fn predict(prob: &Problem, beta: impl Fn(usize) -> f64, b_scratch: &mut [f64], x
     for (i, v) in b_scratch.iter_mut().enumerate() {
         *v = beta(i);
     }
-    prob.delayed_fir(b_scratch, xu, out);
+    prob.delayed_fir(b_scratch, xu, out, &mut Vec::new());
     if prob.offset {
-        let c = beta(prob.nb);
+        let c = beta(prob.one().nb);
         if c != 0.0 {
             out.iter_mut().for_each(|v| *v += c);
         }
@@ -105,8 +105,8 @@ pub fn project(
     inner: &mut Inner,
 ) -> f64 {
     let n = prob.n();
-    let (nb, nl) = (prob.nb, linear_dim(prob));
-    let lay = Layout { nb, nf: 0, delay: prob.delay };
+    let (nb, nl) = (prob.one().nb, linear_dim(prob));
+    let lay = Layout::siso(nb, 0, prob.one().delay);
     inner.h.resize(nl * nl, 0.0);
     inner.a.resize(nl * nl, 0.0);
     inner.g.resize(nl, 0.0);

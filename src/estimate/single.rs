@@ -148,6 +148,7 @@ mod tests {
             f: vec![-radius],
             offset: None,
             criteria: Robust { raic: 0.0, rbic: 0.0 },
+            structure: crate::oe::Structure::siso(1, 1, 1),
         }
     }
 

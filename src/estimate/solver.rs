@@ -27,7 +27,6 @@ use super::options::{HuberHessian, SolverMethod, SolverOptions, Termination};
 use super::problem::{Problem, Solution, add_offset, output_filtered};
 use super::separable;
 use super::workspace::Workspace;
-use crate::oe;
 
 /// The damping after a failed step. From lambda = 0 (allowed as `lambda0`: a pure
 /// Gauss-Newton first step) it starts at a level that can grow.
@@ -67,11 +66,11 @@ fn minimise_unprofiled(
     let d = prob.dim();
     assert_eq!(theta0.len(), d);
     assert_eq!(prob.y.len(), n);
-    ws.prepare(n, d);
+    ws.prepare(n, prob.m(), d);
     ws.theta.copy_from_slice(theta0);
     let mut reflections = 0;
     let mut lambda = opts.lambda0;
-    if oe::reflect_unstable(prob.f_mut(&mut ws.theta)) {
+    if prob.reflect_unstable(&mut ws.theta) {
         reflections += 1;
     }
     let lay = prob.layout();
@@ -82,7 +81,9 @@ fn minimise_unprofiled(
     // yhat = q^-d B (1/F) u = B applied to xu = (1/F) u (LTI operators commute, zero initial
     // conditions): one pass gives the simulation and both Jacobian signals (xu and
     // xy = (1/F) yhat), so an accepted trial point needs no further filtering.
-    let separable = opts.method == SolverMethod::Separable;
+    // Variable projection is written for one input so far: several inputs take the full
+    // Levenberg-Marquardt step (the same minimum, more iterations).
+    let separable = opts.method == SolverMethod::Separable && prob.m() == 1;
     let mut crit = if separable {
         let ws = &mut *ws;
         let c = separable::project(
@@ -98,9 +99,8 @@ fn minimise_unprofiled(
         output_filtered(prob, &ws.theta, &ws.yhat, &mut ws.xy);
         c
     } else {
-        let (b0, f0, c0) = prob.split(&ws.theta);
-        prob.simulate_filtered(b0, f0, &mut ws.xu, &mut ws.yhat, &mut ws.xy);
-        add_offset(&mut ws.yhat, c0);
+        prob.simulate_filtered(&ws.theta, &mut ws.xu, &mut ws.yhat, &mut ws.xy);
+        add_offset(&mut ws.yhat, prob.offset_of(&ws.theta));
         loss.criterion(prob.y, &ws.yhat)
     };
     let finish = |ws: &mut Workspace, crit, iterations, termination, reflections, lambda| Solution {
@@ -170,7 +170,7 @@ fn minimise_unprofiled(
             ws.a.copy_from_slice(&ws.h);
             for i in 0..d {
                 // Variable projection damps F only: b and c are solved for, not stepped.
-                let damped = !separable || (prob.nb..prob.nb + prob.nf).contains(&i);
+                let damped = !separable || prob.structure.f_range(0).contains(&i);
                 ws.a[i * d + i] += if damped { lambda * ws.h[i * d + i].max(floor) } else { floor };
             }
             if !cholesky(&mut ws.a, d) {
@@ -206,8 +206,8 @@ fn minimise_unprofiled(
                 }
                 continue;
             }
-            if !oe::is_stable(prob.f_mut(&mut ws.trial)) {
-                oe::reflect_unstable(prob.f_mut(&mut ws.trial));
+            if !prob.is_stable(&ws.trial) {
+                prob.reflect_unstable(&mut ws.trial);
                 reflected = true;
             }
             let new_crit = if separable {
@@ -224,9 +224,8 @@ fn minimise_unprofiled(
                     &mut ws.inner,
                 )
             } else {
-                let (tb, tf, tc) = prob.split(&ws.trial);
-                prob.simulate_filtered(tb, tf, &mut ws.trial_xu, &mut ws.trial_yhat, &mut ws.trial_xy);
-                add_offset(&mut ws.trial_yhat, tc);
+                prob.simulate_filtered(&ws.trial, &mut ws.trial_xu, &mut ws.trial_yhat, &mut ws.trial_xy);
+                add_offset(&mut ws.trial_yhat, prob.offset_of(&ws.trial));
                 loss.criterion(prob.y, &ws.trial_yhat)
             };
             if new_crit.is_finite() && new_crit < crit {

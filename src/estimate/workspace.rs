@@ -78,18 +78,14 @@ impl Workspace {
         self.profile.as_deref()
     }
 
-    pub(super) fn prepare(&mut self, n: usize, d: usize) {
-        for v in [
-            &mut self.yhat,
-            &mut self.trial_yhat,
-            &mut self.xu,
-            &mut self.trial_xu,
-            &mut self.xy,
-            &mut self.trial_xy,
-            &mut self.r,
-            &mut self.w,
-        ] {
+    /// Sizes the solver's buffers for `m` inputs of `n` samples and `d` parameters: `xu`,
+    /// `xy` and their trial copies hold every input's signal (m x N).
+    pub(super) fn prepare(&mut self, n: usize, m: usize, d: usize) {
+        for v in [&mut self.yhat, &mut self.trial_yhat, &mut self.r, &mut self.w] {
             v.resize(n, 0.0);
+        }
+        for v in [&mut self.xu, &mut self.trial_xu, &mut self.xy, &mut self.trial_xy] {
+            v.resize(m * n, 0.0);
         }
         for v in [&mut self.h, &mut self.a] {
             v.resize(d * d, 0.0);
@@ -109,8 +105,14 @@ impl Workspace {
     /// Jacobian signals `xu`, `xy` (for another solution than the last minimisation's).
     pub(crate) fn resimulate(&mut self, prob: &Problem, theta: &[f64]) {
         let n = prob.n();
-        for v in [&mut self.yhat, &mut self.xu, &mut self.xy] {
-            v.resize(n, 0.0);
+        self.yhat.resize(n, 0.0);
+        for v in [&mut self.xu, &mut self.xy] {
+            v.resize(prob.m() * n, 0.0);
+        }
+        if prob.m() > 1 {
+            prob.simulate_filtered(theta, &mut self.xu, &mut self.yhat, &mut self.xy);
+            super::problem::add_offset(&mut self.yhat, prob.offset_of(theta));
+            return;
         }
         prob.simulate(theta, &mut self.yhat);
         self.xu.copy_from_slice(prob.u);

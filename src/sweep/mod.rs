@@ -33,7 +33,8 @@ use crate::error::Result;
 use crate::estimate::chains::panic_message;
 use crate::estimate::{self, InitialState, Judge, Problem, SolverOptions, Workspace};
 use crate::job::StartStrategy;
-use crate::plan::{Cell, Plan, Structure};
+use crate::oe::Structure;
+use crate::plan::{Cell, Plan};
 use crate::profile::{Phase, Profile, Role, Span, Workers};
 use crate::progress::Progress;
 use crate::schedule;
@@ -84,9 +85,7 @@ impl Context<'_> {
         Problem {
             u: &self.est.u,
             y: &self.est.y,
-            nb: pair.one().nb,
-            nf: pair.one().nf,
-            delay: pair.one().delay,
+            structure: Structure::siso(pair.one().nb, pair.one().nf, pair.one().delay),
             offset: self.levels.mode.estimated(),
             seams: &self.est.seams,
         }

@@ -1,0 +1,114 @@
+//! Which sequence, sign and lag each column of the OE Jacobian is (METHOD.md 2): the map the
+//! normal equations ([`super::normal`]) and the covariance's QR are built from.
+
+use crate::oe::Structure;
+
+/// Which sequence a Jacobian column is a shift of.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(super) enum Seq {
+    U,
+    Y,
+}
+
+/// Column structure of the OE Jacobian for given orders: per input i, its b_i columns
+/// (`xu_i`, +1, d_i + j) and then its f_i columns (`xy_i`, -1, j), inputs one after the other
+/// (theta's order). The sequences `xu` and `xy` hold every input's signal, input after input
+/// (m x N); one input is today's two sequences.
+#[derive(Clone, Copy, Debug)]
+pub struct Layout {
+    pub structure: Structure,
+    /// Input 0's orders: the lagged-correlation path of one input reads them directly.
+    pub(super) nb: usize,
+    pub(super) nf: usize,
+    pub(super) delay: usize,
+}
+
+impl Layout {
+    pub fn new(structure: Structure) -> Self {
+        let o = structure.inputs()[0];
+        Layout { structure, nb: o.nb, nf: o.nf, delay: o.delay }
+    }
+
+    /// One input's layout: OE(nB, nF) with delay d.
+    pub fn siso(nb: usize, nf: usize, delay: usize) -> Self {
+        Self::new(Structure::siso(nb, nf, delay))
+    }
+
+    pub fn dim(&self) -> usize {
+        self.structure.dim()
+    }
+
+    /// The lag of column `c` (`d_i + j` for b_i,j, `j` for f_i,j).
+    pub fn lag(&self, c: usize) -> usize {
+        self.col_of(c).3
+    }
+
+    #[inline(always)]
+    pub(super) fn col(&self, c: usize) -> (Seq, f64, usize) {
+        if c < self.nb { (Seq::U, 1.0, self.delay + c) } else { (Seq::Y, -1.0, c - self.nb + 1) }
+    }
+
+    /// Column `c` of any layout: (input, sequence, sign, lag).
+    fn col_of(&self, c: usize) -> (usize, Seq, f64, usize) {
+        let mut at = c;
+        for (i, o) in self.structure.inputs().iter().enumerate() {
+            if at < o.nb {
+                return (i, Seq::U, 1.0, o.delay + at);
+            }
+            at -= o.nb;
+            if at < o.nf {
+                return (i, Seq::Y, -1.0, at + 1);
+            }
+            at -= o.nf;
+        }
+        panic!("column {c} of a layout with {} columns", self.dim())
+    }
+
+    /// Write column `c` of the Jacobian (c < [`Layout::dim`]) at times `start..start + out.len()`,
+    /// times `factor`, into `out`.
+    pub fn column_into(&self, xu: &[f64], xy: &[f64], c: usize, start: usize, factor: f64, out: &mut [f64]) {
+        let (i, seq, sign, lag) = self.col_of(c);
+        let n = xu.len() / self.structure.m();
+        let x = if seq == Seq::U { &xu[i * n..(i + 1) * n] } else { &xy[i * n..(i + 1) * n] };
+        let f = sign * factor;
+        for (k, o) in out.iter_mut().enumerate() {
+            let t = start + k;
+            *o = if t >= lag { f * x[t - lag] } else { 0.0 };
+        }
+    }
+
+    /// Write `psi_t` (the Jacobian row of the predictor at time t) into `row`.
+    #[inline(always)]
+    pub fn row(&self, xu: &[f64], xy: &[f64], t: usize, row: &mut [f64]) {
+        if self.structure.m() > 1 {
+            return self.row_from(xu, xy, t, 0, row);
+        }
+        for (i, r) in row[..self.nb].iter_mut().enumerate() {
+            let lag = self.delay + i;
+            *r = if t >= lag { xu[t - lag] } else { 0.0 };
+        }
+        for (j, r) in row[self.nb..self.nb + self.nf].iter_mut().enumerate() {
+            let lag = j + 1;
+            *r = if t >= lag { -xy[t - lag] } else { 0.0 };
+        }
+    }
+
+    /// `psi_t` of any layout in an experiment that starts at `t0` (no lag reaches before it).
+    pub(super) fn row_from(&self, xu: &[f64], xy: &[f64], t: usize, t0: usize, row: &mut [f64]) {
+        let n = xu.len() / self.structure.m();
+        let mut c = 0;
+        for (i, o) in self.structure.inputs().iter().enumerate() {
+            let (u, y) = (&xu[i * n..(i + 1) * n], &xy[i * n..(i + 1) * n]);
+            for j in 0..o.nb {
+                let lag = o.delay + j;
+                row[c] = if t >= t0 + lag { u[t - lag] } else { 0.0 };
+                c += 1;
+            }
+            for j in 0..o.nf {
+                let lag = j + 1;
+                row[c] = if t >= t0 + lag { -y[t - lag] } else { 0.0 };
+                c += 1;
+            }
+        }
+    }
+}
