@@ -190,3 +190,21 @@ fn criteria_are_no_higher_than_the_miso_peers() {
     }
     assert_eq!(compared, 16, "every frozen cell compared");
 }
+
+#[test]
+fn the_initial_state_of_several_inputs_is_fitted_when_judging() {
+    let sys = system();
+    // The record's first 300 samples are the unknown past of the judged part.
+    let (u_all, y_all) = record(&sys, 1300, &[], 0.0);
+    let u: Vec<f64> = (0..3).flat_map(|i| u_all[i * 1300 + 300..(i + 1) * 1300].to_vec()).collect();
+    let y = y_all[300..].to_vec();
+    let prob = Problem { u: &u, y: &y, structure: structure_of(&sys), offset: false, seams: &[] };
+    let theta = truth(&sys, None);
+    let zero = estimate::fit_percent(&y, &prob.simulate_vec(&theta));
+    let mut judged = prob.simulate_vec(&theta);
+    let judge = Judge { initial_state: estimate::InitialState::Estimate, ..Judge::default() };
+    judge.judge_output(&prob, &theta, &y, &mut judged, &mut Default::default());
+    let fitted = estimate::fit_percent(&y, &judged);
+    assert!(zero < 99.0, "the past matters on this record: {zero}");
+    assert!(fitted > 99.99, "the fitted initial state explains it: {fitted}");
+}

@@ -45,12 +45,19 @@ impl Judge<'_> {
         yhat: &mut [f64],
         s: &mut initial_state::Scratch,
     ) {
-        // Several inputs: zero initial state only (the boundary refuses `estimate` for them).
-        if self.initial_state == InitialState::Estimate && prob.m() == 1 {
+        if self.initial_state != InitialState::Estimate {
+            return;
+        }
+        // One initial state per experiment.
+        if prob.m() == 1 {
             let (b, f, _) = prob.split(theta);
-            // One initial state per experiment.
             for e in prob.experiments() {
                 initial_state::add_free_response_in(f, b.len(), prob.one().delay, &y[e.clone()], &mut yhat[e], s);
+            }
+        } else {
+            let (f, past) = initial_state::common_denominator(&prob.structure, theta);
+            for e in prob.experiments() {
+                initial_state::add_free_response_in(&f, past + 1, 0, &y[e.clone()], &mut yhat[e], s);
             }
         }
     }

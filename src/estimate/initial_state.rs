@@ -64,6 +64,35 @@ pub fn add_free_response(f: &[f64], nb: usize, delay: usize, y: &[f64], yhat: &m
     add_free_response_in(f, nb, delay, y, yhat, &mut Scratch::default())
 }
 
+/// The free response of several inputs' filters (METHOD.md 9.2): input i's past enters
+/// `F_i y_i = q^-d_i B_i u_i` in its first `n_i = max(nF_i, nB_i + d_i - 1)` equations, so the
+/// sum of their free responses is `(1/F) v` with `F = prod_i F_i` and `v` supported on the
+/// first `max_i (n_i + sum_{j != i} nF_j)` samples. Returns F's coefficients after the leading
+/// 1 and that count; [`add_free_response_in`] with `nb = count + 1`, `delay = 0` fits it.
+pub fn common_denominator(s: &crate::oe::Structure, theta: &[f64]) -> (Vec<f64>, usize) {
+    let mut f = vec![1.0];
+    for i in 0..s.m() {
+        let fi = &theta[s.f_range(i)];
+        let mut next = vec![0.0; f.len() + fi.len()];
+        for (a, &x) in f.iter().enumerate() {
+            next[a] += x;
+            for (j, &y) in fi.iter().enumerate() {
+                next[a + j + 1] += x * y;
+            }
+        }
+        f = next;
+    }
+    let nf_total: usize = s.inputs().iter().map(|o| o.nf).sum();
+    let past = s
+        .inputs()
+        .iter()
+        .map(|o| o.nf.max((o.nb + o.delay).saturating_sub(1)) + nf_total - o.nf)
+        .max()
+        .unwrap_or(0);
+    f.remove(0);
+    (f, past)
+}
+
 /// Buffers of [`add_free_response_in`], one per worker: the impulse response of 1/F and the
 /// residual, each only as long as the impulse response takes to decay (not the record).
 #[derive(Default, Debug)]
