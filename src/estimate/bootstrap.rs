@@ -142,7 +142,7 @@ pub fn run(prob: &Problem, theta: &[f64], k: Option<f64>, settings: &Settings, o
                 }
                 None => {
                     let ls = fit_ls(&rep, &judge, opts, ws);
-                    ls.ok().then(|| (ls.theta(), oe::max_pole_radius(&ls.f) >= BOUNDARY))
+                    ls.ok().then(|| (ls.theta(), rep.max_pole_radius(&ls.theta()) >= BOUNDARY))
                 }
             }
         })
@@ -150,10 +150,12 @@ pub fn run(prob: &Problem, theta: &[f64], k: Option<f64>, settings: &Settings, o
     let ok: Vec<&(Vec<f64>, bool)> = replicates.iter().flatten().collect();
     let interval = |mut v: Vec<f64>| percentile_interval(&mut v, settings.level);
     let parameters = (0..theta.len()).map(|i| interval(ok.iter().map(|t| t.0[i]).collect())).collect();
-    let (b0, f0, _) = prob.split(theta);
     let mut magnitude = Vec::new();
     let mut phase_deg = Vec::new();
-    for &w in &settings.frequencies {
+    // The response's intervals are one input's (several inputs: the parameters' only, so far).
+    let frequencies = if prob.m() == 1 { &settings.frequencies[..] } else { &[] };
+    for &w in frequencies {
+        let (b0, f0, _) = prob.split(theta);
         let phase0 = phase(b0, f0, prob.one().delay, w);
         let (mut mags, mut phases) = (Vec::with_capacity(ok.len()), Vec::with_capacity(ok.len()));
         for (t, _) in &ok {
@@ -174,7 +176,7 @@ pub fn run(prob: &Problem, theta: &[f64], k: Option<f64>, settings: &Settings, o
         seed: settings.seed,
         level: settings.level,
         parameters,
-        frequencies: settings.frequencies.clone(),
+        frequencies: frequencies.to_vec(),
         magnitude,
         phase_deg,
     }
