@@ -95,4 +95,26 @@ impl Structure {
             }
         }
     }
+
+    /// Flat B coefficients (every input's b one after the other, as fits store them) split
+    /// per input; the same for flat F coefficients with [`Structure::split_f`].
+    pub fn split_b<T: Clone>(&self, flat: &[T]) -> Vec<Vec<T>> {
+        split(flat, self.inputs().iter().map(|o| o.nb))
+    }
+    pub fn split_f<T: Clone>(&self, flat: &[T]) -> Vec<Vec<T>> {
+        split(flat, self.inputs().iter().map(|o| o.nf))
+    }
+}
+
+/// `flat` cut into consecutive pieces of the given lengths (what is left over is dropped).
+fn split<T: Clone>(flat: &[T], lengths: impl Iterator<Item = usize>) -> Vec<Vec<T>> {
+    let mut at = 0;
+    lengths
+        .map(|n| {
+            let end = (at + n).min(flat.len());
+            let piece = flat[at.min(end)..end].to_vec();
+            at = end;
+            piece
+        })
+        .collect()
 }
