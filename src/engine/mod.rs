@@ -39,6 +39,7 @@ use std::time::{Duration, Instant};
 
 mod beyond;
 mod export_model;
+pub mod per_input;
 mod single;
 mod uncertainty;
 mod write;

@@ -83,12 +83,8 @@ pub fn common_denominator(s: &crate::oe::Structure, theta: &[f64]) -> (Vec<f64>,
         f = next;
     }
     let nf_total: usize = s.inputs().iter().map(|o| o.nf).sum();
-    let past = s
-        .inputs()
-        .iter()
-        .map(|o| o.nf.max((o.nb + o.delay).saturating_sub(1)) + nf_total - o.nf)
-        .max()
-        .unwrap_or(0);
+    let past =
+        s.inputs().iter().map(|o| o.nf.max((o.nb + o.delay).saturating_sub(1)) + nf_total - o.nf).max().unwrap_or(0);
     f.remove(0);
     (f, past)
 }

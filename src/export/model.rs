@@ -45,6 +45,22 @@ pub struct ModelOut {
 
 /// Names of a model's parameters in the covariance's order: b1.., f1.., and "offset" when
 /// it was estimated.
+/// The names of theta's entries for a structure: `b1.., f1.., offset` for one input, and for
+/// several `u1.b1, .., u1.f1, .., u2.b1, .., offset` (input i's coefficients prefixed `u<i>.`).
+pub fn structure_parameter_names(s: &crate::oe::Structure, offset: bool) -> Vec<String> {
+    if let Some(o) = s.single() {
+        return parameter_names(o.nb, o.nf, offset);
+    }
+    let mut names = Vec::new();
+    for (i, o) in s.inputs().iter().enumerate() {
+        names.extend(parameter_names(o.nb, o.nf, false).into_iter().map(|n| format!("u{}.{n}", i + 1)));
+    }
+    if offset {
+        names.push("offset".into());
+    }
+    names
+}
+
 pub fn parameter_names(nb: usize, nf: usize, offset: bool) -> Vec<String> {
     let mut names: Vec<String> = (1..=nb).map(|i| format!("b{i}")).collect();
     names.extend((1..=nf).map(|j| format!("f{j}")));
