@@ -5,6 +5,7 @@ use crate::data::{self, ColumnRef, ReadOptions};
 use crate::error::{Error, Result};
 use crate::estimate::{self, HuberFit, InitialState, Judge, LsFit, Problem, SolverOptions, Workspace};
 use crate::job;
+use crate::oe::Structure;
 use crate::simulate;
 use crate::spectral;
 use std::path::{Path, PathBuf};
@@ -14,7 +15,8 @@ use std::time::Instant;
 #[derive(Clone, Debug)]
 pub struct FitRequest {
     pub data: PathBuf,
-    pub u: ColumnRef,
+    /// The input columns, one per input (of the estimation and the validation record).
+    pub u: Vec<ColumnRef>,
     pub y: ColumnRef,
     /// Data rows of the estimation record (default: all).
     pub rows: Option<[usize; 2]>,
@@ -30,10 +32,9 @@ pub struct FitRequest {
     pub initial_state: InitialState,
     /// The spectral estimate of `band`.
     pub spectrum: spectral::SpectrumMethod,
-    pub nb: usize,
-    pub nf: usize,
+    /// Every input's orders and delay, in the order of `u`.
+    pub structure: Structure,
     pub k: f64,
-    pub delay: usize,
     /// Sampling period (needed for `band`).
     pub ts: Option<f64>,
     pub band: Option<(f64, f64)>,
@@ -98,7 +99,7 @@ impl FitRequest {
     ) -> FitRequest {
         FitRequest {
             data: PathBuf::from("<u, y arrays>"),
-            u: ColumnRef::Name("u".into()),
+            u: vec![ColumnRef::Name("u".into())],
             y: ColumnRef::Name("y".into()),
             rows: None,
             validation: None,
@@ -107,10 +108,8 @@ impl FitRequest {
             offset,
             initial_state,
             spectrum: spectral::SpectrumMethod::default(),
-            nb,
-            nf,
+            structure: Structure::siso(nb, nf, delay),
             k,
-            delay,
             ts: Some(ts),
             band: None,
             solver: SolverOptions::default(),
@@ -123,8 +122,14 @@ impl FitRequest {
     /// command line names the settings.
     fn check(&self) -> Result<()> {
         let bad = |flag: &str, msg: String| Error::Invalid(format!("{flag} {msg}"));
-        job::check_order(self.nb, 1).map_err(|m| bad("--nb", m))?;
-        job::check_order(self.nf, 0).map_err(|m| bad("--nf", m))?;
+        if self.u.len() != self.structure.m() {
+            let m = self.structure.m();
+            return Err(bad("--u", format!("{} input columns for orders of {m} inputs", self.u.len())));
+        }
+        for o in self.structure.inputs() {
+            job::check_order(o.nb, 1).map_err(|m| bad("--nb", m))?;
+            job::check_order(o.nf, 0).map_err(|m| bad("--nf", m))?;
+        }
         for (flag, rows) in [("--rows", self.rows), ("--val-rows", self.val_rows)] {
             if let Some(r) = rows {
                 data::check_rows(r).map_err(|m| bad(flag, m))?;
@@ -159,7 +164,7 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
     // The records as a job names them, read by the run's loader.
     let data = job::DataSpec {
         path: req.data.clone(),
-        u: Some(req.u.clone()),
+        u: Some(job::InputColumns::list(req.u.clone())),
         y: Some(req.y.clone()),
         rows: req.rows,
         ..Default::default()
@@ -171,7 +176,7 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
             let y = data::validation_column(p, req.val_y.as_ref(), &req.y, &opts)?;
             Some(job::DataSpec {
                 path: p.clone(),
-                u: Some(req.u.clone()),
+                u: Some(job::InputColumns::list(req.u.clone())),
                 y: Some(y),
                 rows: req.val_rows,
                 ..Default::default()
@@ -198,8 +203,20 @@ fn fit_records(
     val: Option<data::Record>,
     val_path: Option<PathBuf>,
 ) -> Result<FitReport> {
+    let largest = &req.structure;
+    let delay0 = largest.inputs().iter().map(|o| o.delay).min().unwrap_or(0);
     let job::Inputs { est, val, levels, warnings, pole_test } =
-        job::inputs_of_records(est, val, req.offset, (req.nb, req.nf, req.delay), req.delay)?;
+        job::inputs_of_records(est, val, req.offset, largest, delay0)?;
+    // Issue 46: the records and orders of several inputs are read and checked above; the fit
+    // itself is of one input so far. The one refusal of `fit` (and `fit_arrays`).
+    if largest.m() > 1 {
+        return Err(Error::Invalid(format!(
+            "{}: {} inputs: the fit fits a single input so far (issue 46)",
+            req.data.display(),
+            largest.m()
+        )));
+    }
+    let crate::oe::Orders { nb, nf, delay } = largest.one();
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
             let s = spectral::estimate_within(&est.u, &est.y, &est.seams, ts, req.spectrum)?;
@@ -215,15 +232,7 @@ fn fit_records(
         initial_state: req.initial_state,
         criterion_only: false,
     };
-    let prob = Problem {
-        u: &est.u,
-        y: &est.y,
-        nb: req.nb,
-        nf: req.nf,
-        delay: req.delay,
-        offset: req.offset.estimated(),
-        seams: &est.seams,
-    };
+    let prob = Problem { u: &est.u, y: &est.y, nb, nf, delay, offset: req.offset.estimated(), seams: &est.seams };
     let mut ws = Workspace::new();
     let t0 = Instant::now();
     let estimate::OneFit { mut ls, mut huber, start, .. } =
@@ -235,7 +244,7 @@ fn fit_records(
     let cov = estimate::evidence::covariance(&prob, &theta, loss, &prob.simulate_vec(&theta));
     let quadratic = cov.as_ref().map(|c| estimate::quadratic::check(&prob, &theta, loss, c));
     let mut warnings = warnings;
-    let model = format!("OE({},{}) delay {}", req.nb, req.nf, req.delay);
+    let model = format!("OE({},{}) delay {}", nb, nf, delay);
     // The integrating-plant test judged against this fit (METHOD.md 7.3).
     if let Some(test) = pole_test.filter(|t| t.integrating) {
         use estimate::integrating::{self, Judged};
@@ -260,7 +269,7 @@ fn fit_records(
             Ok(pool.install(|| estimate::bootstrap::run(&prob, &theta, Some(huber.k), &settings, &req.solver)))
         })
         .transpose()?;
-    let parameters = crate::export::model::parameter_names(req.nb, req.nf, req.offset.estimated());
+    let parameters = crate::export::model::parameter_names(nb, nf, req.offset.estimated());
     // Reported in the data's units, as in the table.
     ls.offset = levels.offset(ls.offset);
     huber.offset = levels.offset(huber.offset);
@@ -269,13 +278,13 @@ fn fit_records(
         n: est.u.len(),
         validation: val_path,
         validation_column: val.as_ref().map(|v| v.y_name.clone()),
-        nb: req.nb,
-        nf: req.nf,
-        delay: req.delay,
+        nb,
+        nf,
+        delay,
         ts: req.ts,
         band_hz: req.band,
         offset_mode: req.offset,
-        input_level: levels.u0,
+        input_level: levels.u0(0),
         initial_state: req.initial_state,
         warnings,
         sigma: ls.sigma,
