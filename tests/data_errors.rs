@@ -7,7 +7,7 @@ mod common;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use oesweep::data::{ReadOptions, Record, check_for_model, column_names, read_columns, read_record};
+use oesweep::data::{ColumnRef, ReadOptions, Record, check_for_model, column_names, read_columns, read_record};
 use polars::prelude::{Column, DataFrame, ParquetWriter};
 use tempfile::TempDir;
 
@@ -145,6 +145,18 @@ fn parquet_roundtrip() {
     let pq = dir.path().join("rec.pq");
     fs::copy(&p, &pq).unwrap();
     assert_eq!(read_record(&pq, "u", "y").unwrap().y, y);
+    // Several inputs, in the order asked for (an integer column among them), input after input.
+    let cols = [ColumnRef::name("u"), ColumnRef::name("k")];
+    let r = oesweep::data::read_record_inputs(&p, &cols, &ColumnRef::name("y"), &ReadOptions::default()).unwrap();
+    assert_eq!((r.inputs(), r.u_names.clone()), (2, vec!["u".to_string(), "k".to_string()]));
+    assert_eq!((r.input(0), r.input(1)), (&u[..], &cols_k()[..]));
+    let cols = [ColumnRef::name("k"), ColumnRef::Position(3)];
+    let e = oesweep::data::read_record_inputs(&p, &cols, &ColumnRef::name("y"), &ReadOptions::default()).unwrap_err();
+    assert!(e.to_string().ends_with("input column 'k' is named twice (as 'k' and as 3)"), "{e}");
+}
+
+fn cols_k() -> Vec<f64> {
+    (0..100).map(|i| i as f64).collect()
 }
 
 #[test]

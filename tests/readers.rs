@@ -100,6 +100,25 @@ fn every_dialect_gives_the_same_record() {
 }
 
 #[test]
+fn several_input_columns_of_a_text_file_in_the_order_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = signals();
+    let p = write(&dir, "three.dat", table(None, |a, b| format!("  {b}  {a}  {}", a * 2.0 + 1.0), "\n"));
+    let us = [ColumnRef::Position(3), ColumnRef::Position(2)];
+    let r = oesweep::data::read_record_inputs(&p, &us, &ColumnRef::Position(1), &ReadOptions::default()).unwrap();
+    let doubled: Vec<f64> = u.iter().map(|a| a * 2.0 + 1.0).collect();
+    assert_eq!((r.input(0), r.input(1), &r.y), (&doubled[..], &u[..], &y));
+    assert_eq!(r.u_names, vec!["column 3", "column 2"]);
+    let e = oesweep::data::read_record_inputs(
+        &p,
+        &[ColumnRef::Position(2), ColumnRef::Position(2)],
+        &ColumnRef::Position(1),
+        &ReadOptions::default(),
+    );
+    assert!(e.unwrap_err().to_string().ends_with("three.dat: input column 2 is named twice"));
+}
+
+#[test]
 fn dialect_and_header_can_be_given() {
     let dir = tempfile::tempdir().unwrap();
     let (u, _) = signals();
@@ -199,6 +218,14 @@ fn mat_files() {
     err(&p, &by_name("note", "y"), &d, "no numeric variable 'note' (numeric variables: u, y, t, uy, short; text");
     err(&p, &by_name("u", "short"), &d, "variables 'u' (40 samples) and 'short' (39 samples) differ in length");
     err(&p, &(ColumnRef::Position(1), ColumnRef::name("y")), &d, "chosen by name");
+    // Several inputs: vectors of either orientation, in the order asked for.
+    let (us, y_ref) = ([ColumnRef::name("t"), ColumnRef::name("u")], ColumnRef::name("y"));
+    let r = oesweep::data::read_record_inputs(&p, &us, &y_ref, &d).unwrap();
+    assert_eq!((r.input(0), r.input(1), &r.y), (&t[..], &u[..], &y));
+    assert_eq!(r.u_names, vec!["t", "u"]);
+    let us = [ColumnRef::name("u"), ColumnRef::name("short")];
+    let e = oesweep::data::read_record_inputs(&p, &us, &y_ref, &d).unwrap_err().to_string();
+    assert!(e.contains("'short' (39 samples)"), "{e}");
     let p = write(&dir, "new.mat", v73_stub());
     err(&p, &by_name("u", "y"), &d, "MATLAB v7.3 (HDF5) MAT-file");
     err(&p, &by_name("u", "y"), &d, "-v7");

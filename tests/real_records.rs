@@ -120,7 +120,7 @@ fn offset_is_recovered_and_the_fit_does_not_depend_on_it() {
         let levels = Levels::of(Offset::Estimate, &est);
         let mut rec = est.clone();
         levels.apply(&mut rec);
-        assert_eq!(levels.u0, u0);
+        assert_eq!(levels.u0, vec![u0]);
         let truth: Vec<f64> = b.iter().chain(&f).copied().chain([c]).collect();
         let prob =
             Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(b.len(), f.len(), 1), offset: true, seams: &[] };

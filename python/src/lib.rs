@@ -275,6 +275,21 @@ fn read(py: Python<'_>, spec: &str) -> PyResult<(Py<PyBytes>, Py<PyBytes>)> {
     Ok((bytes(&rec.u), bytes(&rec.y)))
 }
 
+/// [`read`] of a record of several inputs (`u` a list of columns in the record's JSON): the
+/// input columns' names, their samples input after input (m x N float64, C order) and the
+/// output, as little-endian float64 bytes.
+#[pyfunction]
+fn read_inputs(py: Python<'_>, spec: &str) -> PyResult<(Vec<String>, Py<PyBytes>, Py<PyBytes>)> {
+    let spec: oesweep::job::DataSpec =
+        serde_json::from_str(spec).map_err(|e| JobError::new_err(format!("record: {e}")))?;
+    let rec = py.detach(|| oesweep::job::read_record(&spec)).map_err(to_py)?;
+    let bytes = |v: &[f64]| -> Py<PyBytes> {
+        let raw: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        PyBytes::new(py, &raw).unbind()
+    };
+    Ok((rec.u_names.clone(), bytes(&rec.u), bytes(&rec.y)))
+}
+
 /// The `oesweep` command in this process (the wheel's console script): `argv` as
 /// `sys.argv`, the program's name first; returns the exit code. Runs without the GIL, with
 /// Rust's standard streams flushed before it returns (the process ends in Python, where Rust's
@@ -304,6 +319,7 @@ fn _oesweep(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(export, m)?)?;
     m.add_function(wrap_pyfunction!(write_model, m)?)?;
     m.add_function(wrap_pyfunction!(read, m)?)?;
+    m.add_function(wrap_pyfunction!(read_inputs, m)?)?;
     m.add_function(wrap_pyfunction!(to_continuous, m)?)?;
     m.add_function(wrap_pyfunction!(cli, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

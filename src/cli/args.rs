@@ -16,7 +16,7 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Estimate one OE(nB, nF) model under Huber's criterion and report its quality.
-    Fit(FitArgs),
+    Fit(Box<FitArgs>),
     /// Make example data: PRBS input through an OE system, plus noise and outliers.
     Simulate(SimulateArgs),
     /// Validate a job file and its data without estimating; print the grid and the output folder.
@@ -161,18 +161,19 @@ pub struct FitArgs {
     /// Data rows A:B of the validation record (1-based, inclusive) [default: all].
     #[arg(long, value_name = "A:B", value_parser = parse_rows)]
     pub val_rows: Option<[usize; 2]>,
-    /// Number of B coefficients (numerator), >= 1.
-    #[arg(long)]
-    pub nb: usize,
-    /// Number of F coefficients (denominator order), >= 0.
-    #[arg(long)]
-    pub nf: usize,
+    /// Number of B coefficients (numerator), >= 1; with several inputs one for every input or
+    /// a comma-separated list, one per input (2,1).
+    #[arg(long, value_delimiter = ',', required = true, num_args = 1)]
+    pub nb: Vec<usize>,
+    /// Number of F coefficients (denominator order), >= 0; one, or one per input (2,1).
+    #[arg(long, value_delimiter = ',', required = true, num_args = 1)]
+    pub nf: Vec<usize>,
     /// Huber tuning constant: gamma = k * sigma (sigma from the least-squares fit).
     #[arg(long)]
     pub k: f64,
-    /// Input delay d in samples.
-    #[arg(long, default_value_t = 1)]
-    pub delay: usize,
+    /// Input delay d in samples; one, or one per input (1,0).
+    #[arg(long, value_delimiter = ',', default_value = "1", num_args = 1)]
+    pub delay: Vec<usize>,
     /// Sampling period in seconds (needed for --band).
     #[arg(long)]
     pub ts: Option<f64>,
@@ -182,9 +183,10 @@ pub struct FitArgs {
     /// Spectral estimate of the band fit: robust (spikes cleaned out first) or plain Welch.
     #[arg(long, value_enum, default_value = "robust")]
     pub spectrum: crate::spectral::SpectrumMethod,
-    /// Input column: a name, or a 1-based position.
-    #[arg(long, default_value = "u")]
-    pub u: String,
+    /// Input column: a name, or a 1-based position; several inputs: a comma-separated list of
+    /// them (fuel,fan,feed).
+    #[arg(long, value_delimiter = ',', default_value = "u", num_args = 1)]
+    pub u: Vec<String>,
     /// Output column of the estimation record: a name, or a 1-based position.
     #[arg(long, default_value = "y")]
     pub y: String,

@@ -170,9 +170,12 @@ fn run_spectrum(a: &args::SpectrumArgs) -> Result<u8> {
 }
 
 fn run_fit(a: &FitArgs) -> Result<u8> {
+    let u: Vec<ColumnRef> = a.u.iter().map(|c| ColumnRef::parse(c)).collect();
+    let structure = crate::job::structure_of(u.len(), (&a.nb, &a.nf, &a.delay))
+        .map_err(|(flag, m)| Error::Invalid(format!("{flag} {m}")))?;
     let req = FitRequest {
         data: a.data.clone(),
-        u: ColumnRef::parse(&a.u),
+        u,
         y: ColumnRef::parse(&a.y),
         rows: a.rows,
         validation: a.validation.clone(),
@@ -181,10 +184,8 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
         offset: a.offset,
         initial_state: a.initial_state,
         spectrum: a.spectrum,
-        nb: a.nb,
-        nf: a.nf,
+        structure,
         k: a.k,
-        delay: a.delay,
         ts: a.ts,
         band: a.band,
         solver: SolverOptions {
@@ -202,7 +203,7 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
         eprintln!("warning: {w}");
     }
     if a.json {
-        outln!("{}", serde_json::to_string(&report).expect("report serialises"));
+        outln!("{}", report.to_json());
     } else {
         print_fit_summary(&report);
     }

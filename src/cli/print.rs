@@ -13,7 +13,10 @@ pub(super) fn opt_pct(v: Option<f64>) -> String {
 pub(super) fn print_fit_summary(r: &FitReport) {
     let h = &r.huber;
     let l = &r.ls;
-    outln!("OE(nB={}, nF={}) delay {} on {} ({} samples)", r.nb, r.nf, r.delay, r.data.display(), r.n);
+    match r.structure.single() {
+        Some(_) => outln!("OE(nB={}, nF={}) delay {} on {} ({} samples)", r.nb, r.nf, r.delay, r.data.display(), r.n),
+        None => outln!("{} on {} ({} samples)", r.structure.label(), r.data.display(), r.n),
+    }
     if let (Some(p), Some(c)) = (&r.validation, &r.validation_column) {
         outln!("validation: {} (column '{c}')", p.display());
     }
@@ -39,14 +42,20 @@ pub(super) fn print_fit_summary(r: &FitReport) {
     let with_std = |v: &[f64], s: &[f64]| {
         v.iter().zip(s).map(|(v, s)| format!("{v:.6e} +/- {s:.1e}")).collect::<Vec<_>>().join(", ")
     };
-    outln!("Huber b = [{}]", with_std(&h.b, &he.b_std));
-    outln!("Huber f = [{}]", with_std(&h.f, &he.f_std));
+    let s = &r.structure;
+    let (bs, bstd, fs, fstd) = (s.split_b(&h.b), s.split_b(&he.b_std), s.split_f(&h.f), s.split_f(&he.f_std));
+    for i in 0..s.m() {
+        // One input keeps its unnumbered lines; several are numbered after their inputs.
+        let input = if s.m() == 1 { String::new() } else { format!(" (u{})", i + 1) };
+        outln!("Huber b{input} = [{}]", with_std(&bs[i], &bstd[i]));
+        outln!("Huber f{input} = [{}]", with_std(&fs[i], &fstd[i]));
+    }
     match h.offset {
         Some(c) => outln!(
             "offset = {c}{} ({}; input level u0 = {} taken out)",
             he.offset_std.map_or(String::new(), |s| format!(" +/- {s:.1e}")),
             r.offset_mode.as_str(),
-            r.input_level
+            levels(&r.input_level)
         ),
         None => outln!("offset: none (the paper's model)"),
     }
@@ -56,6 +65,14 @@ pub(super) fn print_fit_summary(r: &FitReport) {
         print_bootstrap(r, b);
     }
     outln!("({:.3} s)", r.seconds);
+}
+
+/// Input levels as the summary prints them: one number for one input, a list for several.
+fn levels(u0: &[f64]) -> String {
+    match u0 {
+        [one] => one.to_string(),
+        all => format!("[{}]", all.iter().map(f64::to_string).collect::<Vec<_>>().join(", ")),
+    }
 }
 
 /// The bootstrap's intervals beside the sandwich std (METHOD.md 17.3).

@@ -5,8 +5,8 @@
 //!
 //! | mode | input | output |
 //! |---|---|---|
-//! | `estimate` (default) | less the estimation record's mean `u0` | a constant `c` estimated jointly with B and F (inside the Huber criterion, so robust) |
-//! | `mean` / `median` | less `u0` (mean / median of the estimation input) | less `y0` (mean / median of the estimation output) |
+//! | `estimate` (default) | less the estimation record's mean `u0` (one per input) | a constant `c` estimated jointly with B and F (inside the Huber criterion, so robust) |
+//! | `mean` / `median` | less `u0` (mean / median of each estimation input) | less `y0` (mean / median of the estimation output) |
 //! | `none` | as it is | as it is (the paper's model) |
 //!
 //! The validation record is shifted by the same `u0` and `y0`, so the model is
@@ -37,11 +37,13 @@ impl Offset {
 }
 
 /// The levels taken out of the records (see the module docs).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Levels {
     pub mode: Offset,
-    /// Subtracted from the input of both records.
-    pub u0: f64,
+    /// Subtracted from each input of both records: one level per input (empty for `none`:
+    /// nothing is taken out; [`Levels::u0`] reads it as zeros).
+    #[serde(serialize_with = "one_or_list")]
+    pub u0: Vec<f64>,
     /// Subtracted from the output of both records.
     pub y0: f64,
 }
@@ -49,24 +51,33 @@ pub struct Levels {
 impl Levels {
     /// The levels `mode` takes from the estimation record.
     pub fn of(mode: Offset, est: &Record) -> Levels {
+        let inputs = (0..est.inputs()).map(|i| est.input(i));
         let (u0, y0) = match mode {
-            Offset::None => (0.0, 0.0),
-            Offset::Estimate => (mean(&est.u), 0.0),
-            Offset::Mean => (mean(&est.u), mean(&est.y)),
-            Offset::Median => (median(&est.u), median(&est.y)),
+            Offset::None => (Vec::new(), 0.0),
+            Offset::Estimate => (inputs.map(mean).collect(), 0.0),
+            Offset::Mean => (inputs.map(mean).collect(), mean(&est.y)),
+            Offset::Median => (inputs.map(median).collect(), median(&est.y)),
         };
         Levels { mode, u0, y0 }
     }
 
     /// No levels: the paper's model.
     pub fn none() -> Levels {
-        Levels { mode: Offset::None, u0: 0.0, y0: 0.0 }
+        Levels { mode: Offset::None, u0: Vec::new(), y0: 0.0 }
+    }
+
+    /// Input i's level (0 where none was taken out).
+    pub fn u0(&self, i: usize) -> f64 {
+        self.u0.get(i).copied().unwrap_or(0.0)
     }
 
     /// `rec` with the levels taken out.
     pub fn apply(&self, rec: &mut Record) {
-        if self.u0 != 0.0 {
-            rec.u.iter_mut().for_each(|v| *v -= self.u0);
+        let n = rec.len();
+        for (i, &u0) in self.u0.iter().enumerate() {
+            if u0 != 0.0 {
+                rec.u[i * n..(i + 1) * n].iter_mut().for_each(|v| *v -= u0);
+            }
         }
         if self.y0 != 0.0 {
             rec.y.iter_mut().for_each(|v| *v -= self.y0);
@@ -107,6 +118,15 @@ pub fn offset_warning(mode: Offset, est: &Record) -> Option<String> {
     })
 }
 
+/// One input's level as a number (as before several inputs), several as a list.
+pub(crate) fn one_or_list<S: serde::Serializer>(u0: &[f64], s: S) -> Result<S::Ok, S::Error> {
+    match u0 {
+        [] => s.serialize_f64(0.0),
+        [one] => s.serialize_f64(*one),
+        all => all.serialize(s),
+    }
+}
+
 /// Mean / standard deviation above which `none` gets a warning.
 const OFFSET_WARNING_RATIO: f64 = 1.0;
 
@@ -133,11 +153,12 @@ mod tests {
     fn levels_of_each_mode() {
         let r = rec(vec![1.0, 2.0, 6.0], vec![10.0, 11.0, 15.0]);
         assert_eq!(Levels::of(Offset::None, &r), Levels::none());
+        assert_eq!(Levels::none().u0(0), 0.0);
         let e = Levels::of(Offset::Estimate, &r);
-        assert_eq!((e.u0, e.y0), (3.0, 0.0));
+        assert_eq!((e.u0(0), e.y0), (3.0, 0.0));
         assert_eq!(e.offset(Some(1.5)), Some(1.5));
         let m = Levels::of(Offset::Median, &r);
-        assert_eq!((m.u0, m.y0), (2.0, 11.0));
+        assert_eq!((m.u0.clone(), m.y0), (vec![2.0], 11.0));
         assert_eq!(m.offset(None), Some(11.0));
         let mut v = r.clone();
         Levels::of(Offset::Mean, &r).apply(&mut v);
@@ -146,5 +167,19 @@ mod tests {
         assert!(offset_warning(Offset::None, &r).is_some());
         assert!(offset_warning(Offset::Estimate, &r).is_none());
         assert!(offset_warning(Offset::None, &rec(vec![1.0, 2.0], vec![-1.0, 1.2])).is_none());
+    }
+
+    #[test]
+    fn one_level_per_input() {
+        let mut r = rec(vec![1.0, 2.0, 6.0, 10.0, 20.0, 30.0], vec![10.0, 11.0, 15.0]);
+        r.u_names = vec!["a".into(), "b".into()];
+        let e = Levels::of(Offset::Mean, &r);
+        assert_eq!(e.u0, vec![3.0, 20.0]);
+        assert_eq!(Levels::of(Offset::Median, &r).u0, vec![2.0, 20.0]);
+        e.apply(&mut r);
+        assert_eq!(r.u, vec![-2.0, -1.0, 3.0, -10.0, 0.0, 10.0]);
+        assert_eq!(serde_json::to_value(&e).unwrap()["u0"], serde_json::json!([3.0, 20.0]));
+        let one = Levels::of(Offset::Mean, &rec(vec![1.0, 3.0], vec![0.0, 1.0]));
+        assert_eq!(serde_json::to_value(&one).unwrap()["u0"], serde_json::json!(2.0));
     }
 }

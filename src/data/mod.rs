@@ -21,11 +21,13 @@
 //! 1-based, counting the header) or row (Parquet and MAT, 1-based data row) and the column: the
 //! user should be able to open the file at the right place from the message alone.
 
+mod checks;
 pub mod levels;
 mod mat;
 pub(crate) mod parquet;
 mod text;
 
+pub use checks::{check_for_model, check_for_structure, check_inputs_distinct, min_samples, min_samples_of};
 pub use levels::{Levels, Offset};
 
 use std::cell::Cell;
@@ -73,16 +75,32 @@ impl Record {
     /// A record from samples in memory (the Python package's arrays), `label` standing for the
     /// file in messages: the same rules as a file's numbers (equal lengths, every sample finite).
     pub fn from_arrays(label: &str, u: Vec<f64>, y: Vec<f64>) -> Result<Record> {
+        Record::from_input_arrays(label, vec![u], y)
+    }
+
+    /// [`Record::from_arrays`] of several inputs, one array each, named `u1`, `u2`, ... in
+    /// messages (one input: `u`): every input as long as `y`.
+    pub fn from_input_arrays(label: &str, inputs: Vec<Vec<f64>>, y: Vec<f64>) -> Result<Record> {
         let path = PathBuf::from(label);
-        if u.len() != y.len() {
-            return Err(input_error(&path, format!("u has {} samples and y {}: they must be equal", u.len(), y.len())));
+        if inputs.is_empty() {
+            return Err(input_error(&path, "no input array: give at least one"));
         }
-        for (name, x) in [("u", &u), ("y", &y)] {
+        let u_names: Vec<String> =
+            if inputs.len() == 1 { vec!["u".into()] } else { (1..=inputs.len()).map(|i| format!("u{i}")).collect() };
+        for (name, x) in u_names.iter().zip(&inputs) {
+            if x.len() != y.len() {
+                return Err(input_error(
+                    &path,
+                    format!("{name} has {} samples and y {}: they must be equal", x.len(), y.len()),
+                ));
+            }
+        }
+        for (name, x) in u_names.iter().map(String::as_str).zip(&inputs).chain([("y", &y)]) {
             if let Some(i) = x.iter().position(|v| !v.is_finite()) {
                 return Err(input_error(&path, format!("sample {i} of {name} is {}, not a finite number", x[i])));
             }
         }
-        Ok(Record { path, u, y, u_names: vec!["u".into()], y_name: "y".into(), seams: Vec::new() })
+        Ok(Record { path, u: inputs.concat(), y, u_names, y_name: "y".into(), seams: Vec::new() })
     }
 
     /// Several experiments as one record: the samples one after the other, with a seam where
@@ -323,20 +341,41 @@ pub fn read_record(path: &Path, u_col: &str, y_col: &str) -> Result<Record> {
     read_record_with(path, &ColumnRef::name(u_col), &ColumnRef::name(y_col), &ReadOptions::default())
 }
 
-/// Reads the input column `u` and the output column `y` of a file, as `opts` says.
-///
-/// All checks of [`read_columns_with`] apply; in addition the two columns must differ.
+/// Reads the input column `u` and the output column `y` of a file, as `opts` says
+/// ([`read_record_inputs`] of one input).
 pub fn read_record_with(path: &Path, u: &ColumnRef, y: &ColumnRef, opts: &ReadOptions) -> Result<Record> {
-    if u == y {
-        return Err(input_error(path, format!("the input and the output column are both {u}")));
+    read_record_inputs(path, std::slice::from_ref(u), y, opts)
+}
+
+/// Reads the input columns `u` (one per input, in the model's order) and the output column `y`
+/// of a file, as `opts` says: one record, its inputs one after the other.
+///
+/// All checks of [`read_columns_with`] apply; in addition no column may be named twice, nor be
+/// both an input and the output (by its reference or by the column it resolves to).
+pub fn read_record_inputs(path: &Path, u: &[ColumnRef], y: &ColumnRef, opts: &ReadOptions) -> Result<Record> {
+    if u.is_empty() {
+        return Err(input_error(path, "no input column: give at least one"));
     }
-    let Columns { mut names, mut values } = read_columns_with(path, &[u.clone(), y.clone()], opts)?;
-    if names[0] == names[1] {
-        return Err(input_error(path, format!("the input and the output column are both '{}'", names[0])));
+    if let Some(c) = u.iter().find(|&c| c == y) {
+        return Err(input_error(path, format!("the input and the output column are both {c}")));
     }
-    let (y, u) = (values.pop().expect("two columns"), values.pop().expect("two columns"));
-    let (y_name, u_name) = (names.pop().expect("two columns"), names.pop().expect("two columns"));
-    Ok(Record { path: path.to_path_buf(), u, y, u_names: vec![u_name], y_name, seams: Vec::new() })
+    for (i, c) in u.iter().enumerate() {
+        if u[..i].contains(c) {
+            return Err(input_error(path, format!("input column {c} is named twice")));
+        }
+    }
+    let cols: Vec<ColumnRef> = u.iter().chain([y]).cloned().collect();
+    let Columns { mut names, mut values } = read_columns_with(path, &cols, opts)?;
+    let (y, y_name) = (values.pop().expect("the output column"), names.pop().expect("the output column"));
+    if let Some(n) = names.iter().find(|&n| *n == y_name) {
+        return Err(input_error(path, format!("the input and the output column are both '{n}'")));
+    }
+    for (i, n) in names.iter().enumerate() {
+        if let Some(j) = names[..i].iter().position(|m| m == n) {
+            return Err(input_error(path, format!("input column '{n}' is named twice (as {} and as {})", u[j], u[i])));
+        }
+    }
+    Ok(Record { path: path.to_path_buf(), u: values.concat(), y, u_names: names, y_name, seams: Vec::new() })
 }
 
 /// Reads the named numeric columns of a file, all rows, default dialect, in the order of
@@ -370,20 +409,6 @@ pub fn read_columns_with(path: &Path, cols: &[ColumnRef], opts: &ReadOptions) ->
     }
 }
 
-/// Smallest record length accepted for OE(nb, nf) with delay `delay`:
-/// `max(20, delay + max(nb, nf) + 4 (nb + nf))`.
-///
-/// The first `delay + max(nb, nf)` samples are dominated by the zero initial conditions (the
-/// ARX initialisation cannot even form its regressors there); after them we ask for at least
-/// four samples per parameter so that the least-squares problems of the initialisation and the
-/// L2 phase are clearly overdetermined. This is a floor against nonsense, not a guarantee of a
-/// good fit: the paper uses N = 5000 for 24 parameters.
-pub fn min_samples(nb: usize, nf: usize, delay: usize) -> usize {
-    // Saturating: a job may ask for any delay up to usize::MAX, and a wrapped sum would
-    // let it through.
-    delay.saturating_add(nb.max(nf)).saturating_add(4usize.saturating_mul(nb.saturating_add(nf))).max(20)
-}
-
 /// A data error whose message is kept on one line: it quotes names and values taken from
 /// job and data files (and messages of the readers), any of which may hold a line break.
 fn input_error(path: &Path, msg: impl Into<String>) -> Error {
@@ -401,50 +426,6 @@ pub(crate) fn one_line(s: &str) -> String {
         }
         out
     })
-}
-
-/// Checks that `rec` can identify OE(nb, nf) with delay `delay`: at least
-/// [`min_samples`] samples, and neither the input nor the output is constant (a constant input
-/// does not excite the system; a constant output leaves nothing to fit).
-pub fn check_for_model(rec: &Record, nb: usize, nf: usize, delay: usize) -> Result<()> {
-    debug_assert_eq!(rec.u.len(), rec.y.len());
-    let n = rec.len();
-    let need = min_samples(nb, nf, delay);
-    if n < need {
-        return Err(input_error(
-            &rec.path,
-            format!("{n} samples are too few for OE(nb={nb}, nf={nf}) with delay {delay}: need at least {need}"),
-        ));
-    }
-    if let Some(v) = constant_value(&rec.u) {
-        return Err(input_error(
-            &rec.path,
-            format!("input column '{}' is constant (value {v}): it does not excite the system", rec.u_names[0]),
-        ));
-    }
-    if let Some(v) = constant_value(&rec.y) {
-        return Err(input_error(
-            &rec.path,
-            format!("output column '{}' is constant (value {v}): there is nothing to fit", rec.y_name),
-        ));
-    }
-    Ok(())
-}
-
-/// `Some(mean)` when the spread of `x` is negligible relative to its level
-/// (max - min <= 1e-12 max(1, |mean|)): such a column carries no information, only round-off.
-fn constant_value(x: &[f64]) -> Option<f64> {
-    if x.is_empty() {
-        return None;
-    }
-    let (mut lo, mut hi, mut sum) = (f64::INFINITY, f64::NEG_INFINITY, 0.0);
-    for &v in x {
-        lo = lo.min(v);
-        hi = hi.max(v);
-        sum += v;
-    }
-    let mean = sum / x.len() as f64;
-    (hi - lo <= 1e-12 * mean.abs().max(1.0)).then_some(mean)
 }
 
 thread_local! {

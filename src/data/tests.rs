@@ -24,21 +24,6 @@ fn column_refs_from_the_command_line_and_json() {
 }
 
 #[test]
-fn min_samples_rule() {
-    assert_eq!(min_samples(1, 1, 1), 20);
-    assert_eq!(min_samples(12, 12, 1), 1 + 12 + 96);
-    assert_eq!(min_samples(9, 12, 2), 2 + 12 + 84);
-}
-
-#[test]
-fn constant_detection_is_relative() {
-    assert_eq!(constant_value(&[3.0, 3.0, 3.0]), Some(3.0));
-    assert!(constant_value(&[1e6, 1e6 + 1e-7]).is_some());
-    assert!(constant_value(&[0.0, 1e-9]).is_none());
-    assert!(constant_value(&[1e6, 1e6 + 1e-3]).is_none());
-}
-
-#[test]
 fn row_ranges() {
     let p = Path::new("r.csv");
     assert_eq!(row_range(p, None, 5).unwrap(), 0..5);

@@ -68,7 +68,7 @@ impl Prepared {
             val: self.inputs.val.as_ref(),
             band: self.spectral.as_ref().map(|(s, b)| (s, &b[..])),
             solver: self.job.job.solver.clone(),
-            levels: self.inputs.levels,
+            levels: self.inputs.levels.clone(),
             initial_state: self.job.job.initial_state,
             profile: None,
         }
@@ -89,6 +89,7 @@ pub fn prepare(path: &Path) -> Result<Prepared> {
 fn prepare_job(job: job::ValidJob) -> Result<Prepared> {
     let path = &job.file;
     let inputs = job::load_inputs(&job)?;
+    job.single_input_only()?;
     let since = std::time::Instant::now();
     let spectral = match job.job.band_hz {
         Some([lo, hi]) => {

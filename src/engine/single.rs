@@ -15,7 +15,8 @@ use std::time::Instant;
 #[derive(Clone, Debug)]
 pub struct FitRequest {
     pub data: PathBuf,
-    pub u: ColumnRef,
+    /// The input columns, one per input (of the estimation and the validation record).
+    pub u: Vec<ColumnRef>,
     pub y: ColumnRef,
     /// Data rows of the estimation record (default: all).
     pub rows: Option<[usize; 2]>,
@@ -31,10 +32,9 @@ pub struct FitRequest {
     pub initial_state: InitialState,
     /// The spectral estimate of `band`.
     pub spectrum: spectral::SpectrumMethod,
-    pub nb: usize,
-    pub nf: usize,
+    /// Every input's orders and delay, in the order of `u`.
+    pub structure: Structure,
     pub k: f64,
-    pub delay: usize,
     /// Sampling period (needed for `band`).
     pub ts: Option<f64>,
     pub band: Option<(f64, f64)>,
@@ -54,15 +54,19 @@ pub struct FitReport {
     pub n: usize,
     pub validation: Option<PathBuf>,
     pub validation_column: Option<String>,
+    /// The orders (one input; several: lists, one entry per input, see [`FitReport::to_json`]).
     pub nb: usize,
     pub nf: usize,
     pub delay: usize,
+    #[serde(skip)]
+    pub structure: Structure,
     /// Sampling period (None: not given).
     pub ts: Option<f64>,
     pub band_hz: Option<(f64, f64)>,
     /// The offset mode, and the input level u0 taken out (the model is `B/F (u - u0) + offset`).
     pub offset_mode: data::Offset,
-    pub input_level: f64,
+    #[serde(serialize_with = "data::levels::one_or_list")]
+    pub input_level: Vec<f64>,
     pub initial_state: InitialState,
     /// What the user should know about the data.
     pub warnings: Vec<String>,
@@ -87,6 +91,21 @@ pub struct FitReport {
     pub ls: LsFit,
 }
 
+impl FitReport {
+    /// The report as `fit --json` prints it and Python's `fit` reads it: a several-input
+    /// model's orders and coefficients one entry per input ([`super::per_input`]).
+    pub fn to_json(&self) -> String {
+        if self.structure.m() == 1 {
+            return serde_json::to_string(self).expect("report serialises");
+        }
+        let mut v = serde_json::to_value(self).expect("report serialises");
+        if let Some(obj) = v.as_object_mut() {
+            super::per_input::split_fields(&self.structure, obj, &["ls"]);
+        }
+        v.to_string()
+    }
+}
+
 impl FitRequest {
     /// A request for records in memory ([`fit_arrays`]: the Python package's `oesweep.fit`),
     /// the other settings at `oesweep fit`'s defaults.
@@ -99,7 +118,7 @@ impl FitRequest {
     ) -> FitRequest {
         FitRequest {
             data: PathBuf::from("<u, y arrays>"),
-            u: ColumnRef::Name("u".into()),
+            u: vec![ColumnRef::Name("u".into())],
             y: ColumnRef::Name("y".into()),
             rows: None,
             validation: None,
@@ -108,10 +127,8 @@ impl FitRequest {
             offset,
             initial_state,
             spectrum: spectral::SpectrumMethod::default(),
-            nb,
-            nf,
+            structure: Structure::siso(nb, nf, delay),
             k,
-            delay,
             ts: Some(ts),
             band: None,
             solver: SolverOptions::default(),
@@ -124,8 +141,14 @@ impl FitRequest {
     /// command line names the settings.
     fn check(&self) -> Result<()> {
         let bad = |flag: &str, msg: String| Error::Invalid(format!("{flag} {msg}"));
-        job::check_order(self.nb, 1).map_err(|m| bad("--nb", m))?;
-        job::check_order(self.nf, 0).map_err(|m| bad("--nf", m))?;
+        if self.u.len() != self.structure.m() {
+            let m = self.structure.m();
+            return Err(bad("--u", format!("{} input columns for orders of {m} inputs", self.u.len())));
+        }
+        for o in self.structure.inputs() {
+            job::check_order(o.nb, 1).map_err(|m| bad("--nb", m))?;
+            job::check_order(o.nf, 0).map_err(|m| bad("--nf", m))?;
+        }
         for (flag, rows) in [("--rows", self.rows), ("--val-rows", self.val_rows)] {
             if let Some(r) = rows {
                 data::check_rows(r).map_err(|m| bad(flag, m))?;
@@ -160,7 +183,7 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
     // The records as a job names them, read by the run's loader.
     let data = job::DataSpec {
         path: req.data.clone(),
-        u: Some(req.u.clone()),
+        u: Some(job::InputColumns::list(req.u.clone())),
         y: Some(req.y.clone()),
         rows: req.rows,
         ..Default::default()
@@ -172,7 +195,7 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
             let y = data::validation_column(p, req.val_y.as_ref(), &req.y, &opts)?;
             Some(job::DataSpec {
                 path: p.clone(),
-                u: Some(req.u.clone()),
+                u: Some(job::InputColumns::list(req.u.clone())),
                 y: Some(y),
                 rows: req.val_rows,
                 ..Default::default()
@@ -199,8 +222,18 @@ fn fit_records(
     val: Option<data::Record>,
     val_path: Option<PathBuf>,
 ) -> Result<FitReport> {
+    let largest = &req.structure;
+    let delay0 = largest.inputs().iter().map(|o| o.delay).min().unwrap_or(0);
     let job::Inputs { est, val, levels, warnings, pole_test } =
-        job::inputs_of_records(est, val, req.offset, (req.nb, req.nf, req.delay), req.delay)?;
+        job::inputs_of_records(est, val, req.offset, largest, delay0)?;
+    if largest.m() > 1 && req.band.is_some() {
+        return Err(Error::Invalid(
+            "--band compares one input's response with a spectral estimate of one input: it is not \
+             computed for several inputs (leave --band out)"
+                .into(),
+        ));
+    }
+    let first = largest.inputs()[0];
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
             let s = spectral::estimate_within(&est.u, &est.y, &est.seams, ts, req.spectrum)?;
@@ -216,13 +249,7 @@ fn fit_records(
         initial_state: req.initial_state,
         criterion_only: false,
     };
-    let prob = Problem {
-        u: &est.u,
-        y: &est.y,
-        structure: Structure::siso(req.nb, req.nf, req.delay),
-        offset: req.offset.estimated(),
-        seams: &est.seams,
-    };
+    let prob = Problem { u: &est.u, y: &est.y, structure: *largest, offset: req.offset.estimated(), seams: &est.seams };
     let mut ws = Workspace::new();
     let t0 = Instant::now();
     let estimate::OneFit { mut ls, mut huber, start, .. } =
@@ -234,7 +261,7 @@ fn fit_records(
     let cov = estimate::evidence::covariance(&prob, &theta, loss, &prob.simulate_vec(&theta));
     let quadratic = cov.as_ref().map(|c| estimate::quadratic::check(&prob, &theta, loss, c));
     let mut warnings = warnings;
-    let model = format!("OE({},{}) delay {}", req.nb, req.nf, req.delay);
+    let model = largest.label();
     // The integrating-plant test judged against this fit (METHOD.md 7.3).
     if let Some(test) = pole_test.filter(|t| t.integrating) {
         use estimate::integrating::{self, Judged};
@@ -259,22 +286,23 @@ fn fit_records(
             Ok(pool.install(|| estimate::bootstrap::run(&prob, &theta, Some(huber.k), &settings, &req.solver)))
         })
         .transpose()?;
-    let parameters = crate::export::model::parameter_names(req.nb, req.nf, req.offset.estimated());
+    let parameters = crate::export::model::structure_parameter_names(largest, req.offset.estimated());
     // Reported in the data's units, as in the table.
     ls.offset = levels.offset(ls.offset);
     huber.offset = levels.offset(huber.offset);
     Ok(FitReport {
         data: req.data.clone(),
-        n: est.u.len(),
+        n: est.len(),
         validation: val_path,
         validation_column: val.as_ref().map(|v| v.y_name.clone()),
-        nb: req.nb,
-        nf: req.nf,
-        delay: req.delay,
+        nb: first.nb,
+        nf: first.nf,
+        delay: first.delay,
+        structure: *largest,
         ts: req.ts,
         band_hz: req.band,
         offset_mode: req.offset,
-        input_level: levels.u0,
+        input_level: (0..largest.m()).map(|i| levels.u0(i)).collect(),
         initial_state: req.initial_state,
         warnings,
         sigma: ls.sigma,

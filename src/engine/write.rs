@@ -60,7 +60,7 @@ fn picks(job: &ValidJob, rows: &[CellRow], inputs: Option<&Inputs>) -> Selection
     };
     let mut selection = reduce::select(rows, &sel_opts);
     selection.offset = Some(job.job.offset);
-    selection.input_level = inputs.map(|i| i.levels.u0);
+    selection.input_level = inputs.map(|i| i.levels.u0(0));
     selection.initial_state = Some(job.job.initial_state);
     selection.warnings = inputs.map(|i| i.warnings.clone()).unwrap_or_default();
     selection.warnings.extend(inputs.and_then(|i| uncertainty::integrating_doubt(&selection, i)));

@@ -5,6 +5,7 @@ use super::{Records, ValidJob};
 use crate::data::{self, Levels, Offset, Record};
 use crate::error::Result;
 use crate::estimate::integrating::{PoleTest, pole_test};
+use crate::oe::Structure;
 
 /// The records a job names, read and checked, with their levels taken out.
 pub struct Inputs {
@@ -22,19 +23,20 @@ pub struct Inputs {
 
 /// Read the job's data files and check them against the largest orders of the grid.
 pub fn load_inputs(vj: &ValidJob) -> Result<Inputs> {
-    read_inputs(&vj.job.data, vj.job.validation.as_ref(), vj.job.offset, vj.largest(), vj.delays[0])
+    read_inputs(&vj.job.data, vj.job.validation.as_ref(), vj.job.offset, &vj.largest_structure(), vj.delays[0])
 }
 
 /// The one loader of records, for a job and for `oesweep fit`: read the estimation and the
 /// validation record as their specs say (the validation output column resolved, see
-/// [`resolve_validation`]), check both against the largest model `(nb, nf, delay)`, and take
-/// out the levels of `offset` ([`Levels::of`], computed here only). `delay` is the one of the
-/// integrating-plant test (the grid's smallest).
+/// [`resolve_validation`]), check both against the largest model `largest`
+/// ([`data::check_for_structure`]: length, constant columns, collinear inputs), and take out
+/// the levels of `offset` ([`Levels::of`], computed here only). `delay` is the one of the
+/// integrating-plant test (the grid's smallest; one input only so far).
 pub fn read_inputs(
     data: &Records,
     validation: Option<&Records>,
     offset: Offset,
-    (nb_max, nf_max, delay_max): (usize, usize, usize),
+    largest: &Structure,
     delay: usize,
 ) -> Result<Inputs> {
     // Each experiment long enough on its own: the simulation restarts in every one.
@@ -42,9 +44,8 @@ pub fn read_inputs(
         let records = read_experiments(specs)?;
         if records.len() > 1 {
             for rec in &records {
-                let need = data::min_samples(nb_max, nf_max, delay_max);
-                if rec.len() < need {
-                    data::check_for_model(rec, nb_max, nf_max, delay_max)?;
+                if rec.len() < data::min_samples_of(largest) {
+                    data::check_for_structure(rec, largest)?;
                 }
             }
         }
@@ -60,30 +61,33 @@ pub fn read_inputs(
         let integrating = est
             .as_ref()
             .ok()
-            .filter(|e| data::check_for_model(e, nb_max, nf_max, delay_max).is_ok())
+            .filter(|e| e.inputs() == 1 && data::check_for_structure(e, largest).is_ok())
             .map(|e| pole_test(&e.u, &e.y, &e.seams, delay));
         let val = val.map(|h| h.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)));
         (est, val, integrating)
     });
     let (est, val) = (est?, val.transpose()?);
-    inputs_with(est, val, offset, (nb_max, nf_max, delay_max), |_| integrating.flatten())
+    inputs_with(est, val, offset, largest, |_| integrating.flatten())
 }
 
 /// The records of `data` or `validation` as read, one per experiment.
 fn read_experiments(specs: &Records) -> Result<Vec<Record>> {
-    specs.specs.iter().map(|s| data::read_record_with(&s.path, &s.u_col(), &s.y_col(), &s.read_options())).collect()
+    specs.specs.iter().map(|s| data::read_record_inputs(&s.path, &s.u_cols(), &s.y_col(), &s.read_options())).collect()
 }
 
 /// [`read_inputs`] of records already in memory: checked against the largest model, levels
 /// taken out, the data's warnings and the integrating-plant test with input delay `delay`.
+/// The records must have the inputs of `largest` (one input: a record of one, and so on).
 pub fn inputs_of_records(
     est: Record,
     val: Option<Record>,
     offset: Offset,
-    largest: (usize, usize, usize),
+    largest: &Structure,
     delay: usize,
 ) -> Result<Inputs> {
-    inputs_with(est, val, offset, largest, |est| pole_test(&est.u, &est.y, &est.seams, delay))
+    inputs_with(est, val, offset, largest, |est| {
+        (est.inputs() == 1).then(|| pole_test(&est.u, &est.y, &est.seams, delay)).flatten()
+    })
 }
 
 /// [`inputs_of_records`] with the integrating-plant test of the estimation record as
@@ -93,12 +97,17 @@ fn inputs_with(
     mut est: Record,
     mut val: Option<Record>,
     offset: Offset,
-    (nb_max, nf_max, delay_max): (usize, usize, usize),
+    largest: &Structure,
     integrating: impl FnOnce(&Record) -> Option<PoleTest>,
 ) -> Result<Inputs> {
-    data::check_for_model(&est, nb_max, nf_max, delay_max)?;
-    if let Some(rec) = &val {
-        data::check_for_model(rec, nb_max, nf_max, delay_max)?;
+    for rec in std::iter::once(&est).chain(&val) {
+        if rec.inputs() != largest.m() {
+            return Err(crate::error::Error::data(
+                &rec.path,
+                format!("{} input columns for a model of {} inputs", rec.inputs(), largest.m()),
+            ));
+        }
+        data::check_for_structure(rec, largest)?;
     }
     let levels = Levels::of(offset, &est);
     let warnings: Vec<String> = data::levels::offset_warning(offset, &est).into_iter().collect();

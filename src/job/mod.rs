@@ -12,11 +12,13 @@ use crate::estimate::SolverOptions;
 
 mod inputs;
 mod parse;
+mod per_input;
 mod uncertainty;
 mod validate;
 
 pub use crate::reduce::SelectionSettings;
 pub use inputs::{Inputs, inputs_of_records, load_inputs, read_inputs, read_records};
+pub use per_input::{Delays, InputColumns, InputGrid, Ranges, check_count, structure_of};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 pub use uncertainty::{Uncertainty, UncertaintyMethod};
@@ -42,9 +44,9 @@ pub struct DataSpec {
     #[serde(default)]
     pub path: PathBuf,
     /// Input column: a name, or a 1-based position (default "u"; for the validation record,
-    /// the estimation record's).
+    /// the estimation record's); or a list of them, one per input (several inputs).
     #[serde(default)]
-    pub u: Option<ColumnRef>,
+    pub u: Option<InputColumns>,
     /// Output column. Default: "y" for the estimation record; for the validation record
     /// "y0" (noise-free output written by `oesweep simulate`) when the file has it, else the
     /// estimation record's.
@@ -76,9 +78,9 @@ impl DataSpec {
         }
     }
 
-    /// The input column (validated specs always have one).
-    pub fn u_col(&self) -> ColumnRef {
-        self.u.clone().unwrap_or_else(|| ColumnRef::name("u"))
+    /// The input columns, one per input (validated specs always have them; default "u").
+    pub fn u_cols(&self) -> Vec<ColumnRef> {
+        self.u.as_ref().map_or_else(|| vec![ColumnRef::name("u")], |u| u.cols.clone())
     }
 
     /// The output column (validated specs always have one).
@@ -93,7 +95,7 @@ impl DataSpec {
 pub fn read_record(spec: &DataSpec) -> Result<data::Record> {
     validate::check_data_spec(spec, "data")
         .map_err(|(f, m)| Error::Invalid(format!("field '{}': {m}", f.trim_start_matches("data."))))?;
-    data::read_record_with(&spec.path, &spec.u_col(), &spec.y_col(), &spec.read_options())
+    data::read_record_inputs(&spec.path, &spec.u_cols(), &spec.y_col(), &spec.read_options())
 }
 
 /// The records of `data` or `validation`: one object (the usual job) or a list of them, one per
@@ -220,18 +222,20 @@ pub enum Spacing {
 
 crate::names::names!(Spacing { Linear = "linear", Log = "log" });
 
+/// The grid: each of `nb`, `nf` and `delay` one range for every input or a list of ranges, one
+/// per input ([`Ranges`]); the structures are the product over the inputs.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Grid {
     /// Inclusive range [from, to] of nB.
-    pub nb: [usize; 2],
+    pub nb: Ranges,
     /// Inclusive range [from, to] of nF.
-    pub nf: [usize; 2],
+    pub nf: Ranges,
     pub k: KGrid,
     /// Inclusive range [from, to] of the input delay d in samples (default: the job's
     /// top-level `delay`, itself 1 by default).
     #[serde(default)]
-    pub delay: Option<[usize; 2]>,
+    pub delay: Option<Ranges>,
 }
 
 /// Where each Huber fit starts.
@@ -267,9 +271,10 @@ pub struct Job {
     /// The validation record, or a list of records.
     #[serde(default)]
     pub validation: Option<Records>,
-    /// One input delay for the whole grid (shorthand of `grid.delay` = [d, d]).
+    /// One input delay for the whole grid (shorthand of `grid.delay` = [d, d]), or a list of
+    /// them, one per input.
     #[serde(default)]
-    pub delay: Option<usize>,
+    pub delay: Option<Delays>,
     /// Offsets of the signals ([`data::levels`]).
     #[serde(default)]
     pub offset: Offset,
@@ -305,6 +310,12 @@ pub struct ValidJob {
     pub file: PathBuf,
     /// Normalised job (resolved paths and columns, k as an explicit list): written as job.json.
     pub job: Job,
+    /// Number of inputs m (the input columns of every record).
+    pub m: usize,
+    /// Each input's grid, in the order of the input columns.
+    pub grids: Vec<InputGrid>,
+    /// The first input's grid (`grids[0]`: all of it for one input, which the single-input
+    /// planner reads).
     pub nb: Vec<usize>,
     pub nf: Vec<usize>,
     pub delays: Vec<usize>,
@@ -324,13 +335,23 @@ impl ValidJob {
     /// The grid of a normalised job (`grid.delay` set, k a list; [`validate`] made it so):
     /// the one expansion of the grid into its values.
     fn of_normalised(file: &Path, job: Job) -> ValidJob {
+        let m = job.data.first().u_cols().len();
         let range = |[a, b]: [usize; 2]| (a..=b).collect::<Vec<usize>>();
-        let delays = range(job.grid.delay.unwrap_or([job.delay.unwrap_or(DEFAULT_DELAY); 2]));
+        let each = |r: &Ranges| -> Vec<Vec<usize>> {
+            r.per_input("", m).expect("validated").into_iter().map(|(_, r)| range(r)).collect()
+        };
+        let delay = job.grid.delay.clone().unwrap_or(Ranges::One([DEFAULT_DELAY; 2]));
+        let (nb, nf, delays) = (each(&job.grid.nb), each(&job.grid.nf), each(&delay));
+        let grids: Vec<InputGrid> =
+            (0..m).map(|i| InputGrid { nb: nb[i].clone(), nf: nf[i].clone(), delays: delays[i].clone() }).collect();
+        let first = grids[0].clone();
         ValidJob {
             file: file.to_path_buf(),
-            nb: range(job.grid.nb),
-            nf: range(job.grid.nf),
-            delays,
+            m,
+            grids,
+            nb: first.nb,
+            nf: first.nf,
+            delays: first.delays,
             ks: k_values(&job.grid.k),
             job,
         }
@@ -349,17 +370,45 @@ impl ValidJob {
         )
     }
 
-    /// The largest orders and delay of the grid: the records must be long enough for them.
+    /// The largest orders and delay of the first input's grid (all of it for one input).
     pub fn largest(&self) -> (usize, usize, usize) {
         (*self.nb.last().unwrap(), *self.nf.last().unwrap(), *self.delays.last().unwrap())
     }
 
+    /// The largest model of the grid, every input at its largest orders and delay: the records
+    /// must be long enough for it.
+    pub fn largest_structure(&self) -> crate::oe::Structure {
+        let last = |v: &[usize]| *v.last().expect("validated");
+        let orders: Vec<crate::oe::Orders> = self
+            .grids
+            .iter()
+            .map(|g| crate::oe::Orders { nb: last(&g.nb), nf: last(&g.nf), delay: last(&g.delays) })
+            .collect();
+        crate::oe::Structure::new(&orders).expect("validated: 1 to MAX_INPUTS inputs")
+    }
+
+    /// The structures of the grid: the product over the inputs of each input's (nB, nF, d).
     pub fn n_pairs(&self) -> usize {
-        self.nb.len() * self.nf.len() * self.delays.len()
+        self.grids.iter().map(InputGrid::len).product()
     }
     pub fn n_cells(&self) -> usize {
         self.n_pairs() * self.ks.len()
     }
+    /// Issue 46, landing 2: the job, readers and checks take several inputs, the sweep does
+    /// not yet. The one refusal of the sweep's entry points (`plan`, `run`, shards and `slurm`
+    /// through [`crate::engine::prepare`], `merge`, and the report and export of a results
+    /// folder): delete it, and its calls, when the sweep fits several inputs.
+    pub fn single_input_only(&self) -> Result<()> {
+        if self.m == 1 {
+            return Ok(());
+        }
+        Err(Error::Invalid(format!(
+            "job '{}': {} inputs: the sweep fits a single input so far (issue 46)",
+            self.file.display(),
+            self.m
+        )))
+    }
+
     pub fn output(&self) -> &Path {
         &self.job.output
     }

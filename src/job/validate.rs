@@ -2,7 +2,9 @@
 //! defaults filled in, the validation record's output column found), with one error naming
 //! the file and the field. The rules that `oesweep fit` shares are public.
 
-use super::{DEFAULT_DELAY, DataSpec, Job, KGrid, MAX_CELLS, MAX_ORDER, MIN_EXPLORE_ROWS, k_values};
+use super::{
+    DEFAULT_DELAY, DataSpec, InputColumns, Job, KGrid, MAX_CELLS, MAX_ORDER, MIN_EXPLORE_ROWS, Ranges, k_values,
+};
 use crate::data::{self, ColumnRef, Delimiter};
 use crate::error::{Error, Result};
 use crate::estimate::SolverOptions;
@@ -59,8 +61,10 @@ pub(super) fn check_data_spec(d: &DataSpec, which: &str) -> std::result::Result<
     if let Some(rows) = d.rows {
         data::check_rows(rows).map_err(|m| (format!("{which}.rows"), m))?;
     }
-    for (name, c) in [("u", &d.u), ("y", &d.y)] {
-        if c == &Some(ColumnRef::Position(0)) {
+    let inputs = d.u.iter().flat_map(|u| u.cols.iter().enumerate().map(|(i, c)| (u.list, i, c)));
+    let named = inputs.map(|(list, i, c)| (if list { format!("u[{i}]") } else { "u".into() }, c));
+    for (name, c) in named.chain(d.y.iter().map(|c| ("y".to_string(), c))) {
+        if c == &ColumnRef::Position(0) {
             return Err((format!("{which}.{name}"), "column position 0: positions count from 1".into()));
         }
     }
@@ -116,11 +120,11 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
         spec.path = resolve(&base, &spec.path);
         match &first {
             None => {
-                spec.u.get_or_insert_with(|| ColumnRef::name("u"));
+                spec.u.get_or_insert_with(|| InputColumns::one(ColumnRef::name("u")));
                 spec.y.get_or_insert_with(|| ColumnRef::name("y"));
             }
             Some(first) => {
-                spec.u.get_or_insert_with(|| first.u_col());
+                spec.u.get_or_insert_with(|| first.u.clone().expect("filled in above"));
                 spec.y.get_or_insert_with(|| first.y_col());
                 if spec.delimiter.is_none() && spec.path == first.path {
                     spec.delimiter = first.delimiter.clone();
@@ -161,7 +165,7 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
         } else {
             v.path = resolve(&base, &v.path);
         }
-        v.u.get_or_insert_with(|| data0.u_col());
+        v.u.get_or_insert_with(|| data0.u.clone().expect("filled in above"));
         if v.delimiter.is_none() && v.path == data0.path {
             v.delimiter = data0.delimiter.clone();
         }
@@ -185,28 +189,41 @@ fn check_grid_and_settings(job: &mut Job) -> std::result::Result<(), (String, St
     if job.name.trim().is_empty() {
         return Err(err("name", "must not be empty".into()));
     }
-    let [b0, b1] = job.grid.nb;
-    let [f0, f1] = job.grid.nf;
-    if b0 < 1 || b0 > b1 {
-        return Err(err("grid.nb", format!("[{b0}, {b1}] is not a range [from, to] with 1 <= from <= to")));
-    }
-    if f0 > f1 {
-        return Err(err("grid.nf", format!("[{f0}, {f1}] is not a range [from, to] with from <= to")));
-    }
-    check_order(b1.max(f1), 0).map_err(|m| err("grid", m))?;
-    let [d0, d1] = match (job.grid.delay, job.delay) {
+    let m = check_input_counts(job)?;
+    let delay = match (job.grid.delay.take(), job.delay.take()) {
         (Some(_), Some(_)) => {
             return Err(err("delay", "give either 'delay' or 'grid.delay', not both".into()));
         }
-        (Some(range), None) => range,
-        (None, Some(d)) => [d, d],
-        (None, None) => [DEFAULT_DELAY; 2],
+        (Some(ranges), None) => ranges,
+        (None, Some(d)) => {
+            if let super::Delays::PerInput(v) = &d {
+                super::check_count("delay", "delays", v.len(), m)?;
+            }
+            d.as_ranges()
+        }
+        (None, None) => Ranges::One([DEFAULT_DELAY; 2]),
     };
-    if d0 > d1 {
-        return Err(err("grid.delay", format!("[{d0}, {d1}] is not a range [from, to] with from <= to")));
+    let nb = job.grid.nb.per_input("grid.nb", m)?;
+    let nf = job.grid.nf.per_input("grid.nf", m)?;
+    let delays = delay.per_input("grid.delay", m)?;
+    // The structures of the product over the inputs (None: beyond any count).
+    let mut structures = Some(1u128);
+    for i in 0..m {
+        let ((bf, [b0, b1]), (ff, [f0, f1]), (df, [d0, d1])) = (&nb[i], &nf[i], &delays[i]);
+        if *b0 < 1 || b0 > b1 {
+            return Err(err(bf, format!("[{b0}, {b1}] is not a range [from, to] with 1 <= from <= to")));
+        }
+        if f0 > f1 {
+            return Err(err(ff, format!("[{f0}, {f1}] is not a range [from, to] with from <= to")));
+        }
+        check_order(*b1.max(f1), 0).map_err(|m| err("grid", m))?;
+        if d0 > d1 {
+            return Err(err(df, format!("[{d0}, {d1}] is not a range [from, to] with from <= to")));
+        }
+        let here = ((b1 - b0 + 1) * (f1 - f0 + 1)) as u128 * ((d1 - d0) as u128 + 1);
+        structures = structures.and_then(|s| s.checked_mul(here));
     }
-    job.grid.delay = Some([d0, d1]);
-    job.delay = None;
+    job.grid.delay = Some(delay);
     if let KGrid::Range(r) = &job.grid.k {
         if r.count == 0 {
             return Err(err("grid.k.count", "must be at least 1".into()));
@@ -224,9 +241,12 @@ fn check_grid_and_settings(job: &mut Job) -> std::result::Result<(), (String, St
         KGrid::List(v) => v.len(),
         KGrid::Range(r) => r.count,
     };
-    let cells = ((b1 - b0 + 1) * (f1 - f0 + 1)) as u128 * ((d1 - d0) as u128 + 1) * n_k as u128;
-    if cells > MAX_CELLS as u128 {
-        return Err(err("grid", format!("{cells} cells is above the limit of {MAX_CELLS}")));
+    match structures.and_then(|s| s.checked_mul(n_k as u128)) {
+        Some(cells) if cells > MAX_CELLS as u128 => {
+            return Err(err("grid", format!("{cells} cells is above the limit of {MAX_CELLS}")));
+        }
+        None => return Err(err("grid", format!("more cells than can be counted: the limit is {MAX_CELLS}"))),
+        Some(_) => {}
     }
     let ks = k_values(&job.grid.k);
     if ks.is_empty() {
@@ -259,6 +279,33 @@ fn check_grid_and_settings(job: &mut Job) -> std::result::Result<(), (String, St
     }
     job.grid.k = KGrid::List(ks);
     Ok(())
+}
+
+/// The number of inputs m of a job: the input columns of its first record, which every other
+/// record (experiments, validation) must match. Returns (field, message).
+fn check_input_counts(job: &Job) -> std::result::Result<usize, (String, String)> {
+    let count = |s: &DataSpec| s.u.as_ref().map_or(1, |u| u.cols.len());
+    let m = count(job.data.first());
+    if m > crate::oe::MAX_INPUTS {
+        return Err((
+            "data.u".into(),
+            format!("{m} input columns: at most {} inputs are supported", crate::oe::MAX_INPUTS),
+        ));
+    }
+    let named = job.data.named("data").skip(1).chain(job.validation.iter().flat_map(|v| v.named("validation")));
+    for (name, spec) in named {
+        if count(spec) != m {
+            let whose = if name.starts_with("data") { "the first record" } else { "the estimation record" };
+            return Err((
+                format!("{name}.u"),
+                format!(
+                    "{} where {whose} has {m}: every record has the same inputs",
+                    super::per_input::counted(count(spec), "input columns")
+                ),
+            ));
+        }
+    }
+    Ok(m)
 }
 
 /// The rules of a job a run wrote (`job.json` of a results or checkpoint folder, which anyone
