@@ -130,7 +130,13 @@ fn the_warning_names_the_pole_and_its_interval() {
 /// The warnings of `oesweep fit` of OE(nb, nf) at k = 1 on (u, y), and the test it judged.
 fn fit_warnings(u: &[f64], y: &[f64], (nb, nf): (usize, usize)) -> (Vec<String>, PoleTest) {
     let test = pole_test(u, y, &[], 1).expect("the test runs");
-    let req = FitRequest::for_arrays((nb, nf, 1), 1.0, 1.0, Offset::Estimate, InitialState::Estimate);
+    let req = FitRequest::for_arrays(
+        oesweep::oe::Structure::siso(nb, nf, 1),
+        1.0,
+        1.0,
+        Offset::Estimate,
+        InitialState::Estimate,
+    );
     let report = fit_arrays(&req, rec(u.to_vec(), y.to_vec()), None).unwrap();
     (report.warnings, test)
 }

@@ -297,8 +297,8 @@ fn fit_reads_lists_of_inputs_and_orders_and_names_each_bad_one() {
         (&["--u", "u,c", "--nb", "1", "--nf", "1"], "d.csv: input column 'c' is constant (value 4)"),
         (&["--u", "u,v,w", "--nb", "1", "--nf", "1"], "d.csv: input columns 'u' and 'w' are perfectly collinear"),
         (
-            &["--u", "u,v", "--nb", "1", "--nf", "1", "--val-rows", "301:400", "--rows", "1:300"],
-            "2 inputs: the fit fits a single input so far (issue 46)",
+            &["--u", "u,v", "--nb", "1", "--nf", "1", "--ts", "1", "--band", "0.01,0.2"],
+            "--band compares one input's response",
         ),
     ];
     for (extra, want) in cases {
@@ -307,6 +307,27 @@ fn fit_reads_lists_of_inputs_and_orders_and_names_each_bad_one() {
         assert_eq!(err.lines().count(), 1, "{extra:?}: {err}");
         assert!(err.contains(want), "{extra:?}: expected '{want}' in: {err}");
     }
+    // Several inputs are fitted: the report holds one entry per input.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
+        .current_dir(dir.path())
+        .args(["fit", "--data", "d.csv", "--k", "1", "--u", "u,v", "--nb", "2,1", "--nf", "1", "--delay", "1,0"])
+        .args(["--rows", "1:300", "--val-rows", "301:400", "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["nb"], serde_json::json!([2, 1]), "{report}");
+    assert_eq!(report["delay"], serde_json::json!([1, 0]));
+    assert_eq!(
+        report["b"].as_array().map(|b| b.iter().map(|x| x.as_array().unwrap().len()).collect::<Vec<_>>()),
+        Some(vec![2, 1])
+    );
+    assert_eq!(
+        report["ls"]["f"].as_array().map(Vec::len),
+        Some(2),
+        "one F list per input in the least-squares fit too"
+    );
+    assert_eq!(report["parameters"][0], "u1.b1");
     // One input keeps its meaning: a single value of each, the column as before.
     let (code, err) = fit(&["--u", "u", "--nb", "2", "--nf", "1", "--delay", "0"]);
     assert_eq!(code, Some(0), "{err}");

@@ -17,7 +17,7 @@ import shutil
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable, Dict, Optional, Sequence, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Union
 
 import numpy as np
 
@@ -97,54 +97,94 @@ class Model:
         raise AttributeError(f"'Model' object has no attribute {name!r}")
 
     @property
-    def num_den(self):
-        """``num``, ``den`` in descending powers of z, of equal length (delay as leading zeros)."""
-        d, b, f = int(self.delay), list(self.b), list(self.f)
+    def inputs(self) -> int:
+        """The number of inputs m (a several-input model's ``b``, ``f`` hold one list per input)."""
+        return len(self.nb) if isinstance(self.nb, list) else 1
+
+    def _parts(self) -> List[tuple]:
+        """(b, f, delay, input level) of each input."""
+        if self.inputs == 1:
+            return [(list(self.b), list(self.f), int(self.delay), float(self.input_level or 0.0))]
+        levels = self.input_level if isinstance(self.input_level, list) else [0.0] * self.inputs
+        return [(list(b), list(f), int(d), float(u0)) for b, f, d, u0 in zip(self.b, self.f, self.delay, levels)]
+
+    @staticmethod
+    def _num_den(b: List[float], f: List[float], d: int):
         n = max(d + len(b), len(f) + 1)
         num = [0.0] * n
         num[d : d + len(b)] = b
         den = [1.0] + f + [0.0] * (n - 1 - len(f))
         return np.array(num), np.array(den)
 
+    @property
+    def num_den(self):
+        """``num``, ``den`` in descending powers of z, of equal length (delay as leading zeros);
+        with several inputs a list of one such pair per input."""
+        pairs = [self._num_den(b, f, d) for b, f, d, _ in self._parts()]
+        return pairs[0] if self.inputs == 1 else pairs
+
     def simulate(self, u: ArrayLike, initial_state: Optional[ArrayLike] = None) -> np.ndarray:
         """The model output for input ``u`` (data units), from zero initial state unless
-        ``initial_state`` (``scipy.signal.lfilter``'s ``zi``) is given. Needs scipy."""
+        ``initial_state`` (``scipy.signal.lfilter``'s ``zi``; one input only) is given. Several
+        inputs: ``u`` as ``fit`` takes it (2-D, one column per input, or a list). Needs scipy."""
         lfilter = _scipy_signal().lfilter
 
-        u = np.asarray(u, dtype=np.float64) - float(self.input_level or 0.0)
-        num, den = self.num_den
-        if initial_state is None:
-            y = lfilter(num, den, u)
-        else:
-            y, _ = lfilter(num, den, u, zi=np.asarray(initial_state, dtype=np.float64))
+        parts = self._parts()
+        us = _inputs("u", u)
+        if len(us) != len(parts):
+            raise DataError(f"u: {len(us)} inputs for a model of {len(parts)}")
+        if initial_state is not None and len(parts) > 1:
+            raise JobError("initial_state: one input's lfilter state; not for a model of several inputs")
+        y = np.zeros(len(us[0]))
+        for ui, (b, f, d, u0) in zip(us, parts):
+            num, den = self._num_den(b, f, d)
+            if initial_state is None:
+                y = y + lfilter(num, den, ui - u0)
+            else:
+                y = y + lfilter(num, den, ui - u0, zi=np.asarray(initial_state, dtype=np.float64))[0]
         return y + float(self.offset or 0.0)
 
     def frequency_response(self, freq_hz: ArrayLike) -> np.ndarray:
-        """G(e^{j 2 pi f ts}) at the frequencies ``freq_hz`` (complex)."""
+        """G(e^{j 2 pi f ts}) at the frequencies ``freq_hz`` (complex); several inputs: one
+        column per input."""
         w = 2.0 * np.pi * np.asarray(freq_hz, dtype=np.float64) * float(self.ts)
         z1 = np.exp(-1j * w)
-        num, den = self.num_den
-        powers = np.arange(len(num))
-        return (num[None, :] * z1[:, None] ** powers).sum(1) / (den[None, :] * z1[:, None] ** powers).sum(1)
+        columns = []
+        for b, f, d, _ in self._parts():
+            num, den = self._num_den(b, f, d)
+            powers = np.arange(len(num))
+            columns.append((num[None, :] * z1[:, None] ** powers).sum(1) / (den[None, :] * z1[:, None] ** powers).sum(1))
+        return columns[0] if self.inputs == 1 else np.stack(columns, axis=1)
 
     def to_scipy(self):
-        """``scipy.signal.dlti`` with ``dt = ts``. Needs scipy."""
+        """``scipy.signal.dlti`` with ``dt = ts`` (several inputs: a list of one per input).
+        Needs scipy."""
         import warnings
 
         dlti = _scipy_signal().dlti
 
-        num, den = self.num_den
+        systems = []
         with warnings.catch_warnings():
             # The delay's leading zeros of num are exact, not a badly conditioned numerator.
             warnings.filterwarnings("ignore", message="Badly conditioned filter coefficients")
-            return dlti(num, den, dt=float(self.ts))
+            for b, f, d, _ in self._parts():
+                num, den = self._num_den(b, f, d)
+                systems.append(dlti(num, den, dt=float(self.ts)))
+        return systems[0] if self.inputs == 1 else systems
 
     def to_control(self):
-        """A python-control ``TransferFunction`` with ``dt = ts``. Needs python-control."""
+        """A python-control ``TransferFunction`` with ``dt = ts``: several inputs give one with
+        one output and one input per model input. Needs python-control."""
         tf = _control().tf
 
-        num, den = self.num_den
-        return tf(num, den, float(self.ts))
+        pairs = [self._num_den(b, f, d) for b, f, d, _ in self._parts()]
+        if self.inputs == 1:
+            return tf(pairs[0][0], pairs[0][1], float(self.ts))
+        return tf([[list(n) for n, _ in pairs]], [[list(d) for _, d in pairs]], float(self.ts))
+
+    def _single_input(self, what: str) -> None:
+        if self.inputs > 1:
+            raise JobError(f"{what} writes one input's transfer function; a model of {self.inputs} inputs is not written yet")
 
     def to_continuous(self, method: str = "zoh") -> "ContinuousModel":
         """The continuous-time equivalent for control design, as ``oesweep export --continuous``
@@ -154,6 +194,7 @@ class Model:
         equivalent: under ZOH a pole at or near z = 0 or on the negative real axis, under
         Tustin a pole at z = -1. At high orders or short sample times use the result's
         ``zeros``, ``poles``, ``gain`` or ``state_space`` rather than ``num``, ``den``."""
+        self._single_input("to_continuous")
         return ContinuousModel(json.loads(_oesweep.to_continuous(json.dumps(self._document()), method)))
 
     def to_dict(self) -> Dict[str, Any]:
@@ -165,6 +206,7 @@ class Model:
         ``den``, ``dt``, offset, delay, covariance), ``"matlab"`` (a script that builds the
         ``tf`` and, with the System Identification Toolbox, the ``idpoly``) or ``"mat"`` (a
         level-5 MAT-file, ``path`` required). Writes ``path`` when given, else returns the text."""
+        self._single_input("export")
         doc = self._document()
         if to == "mat":
             if path is None:
@@ -199,7 +241,11 @@ class Model:
     def __repr__(self) -> str:
         k = f" k = {self.k}" if self.k is not None else " (least squares)"
         fits = [f"{name} = {v:.2f} %" for name, v in (("fit", self.fit), ("fit_val", self.fit_val)) if v is not None]
-        return f"Model(OE({len(self.b)}, {len(self.f)}) delay {self.delay}{k}{', ' if fits else ''}{', '.join(fits)})"
+        if self.inputs == 1:
+            orders = f"OE({len(self.b)}, {len(self.f)}) delay {self.delay}"
+        else:
+            orders = "OE(" + "; ".join(f"{len(b)},{len(f)} d{d}" for b, f, d, _ in self._parts()) + ")"
+        return f"Model({orders}{k}{', ' if fits else ''}{', '.join(fits)})"
 
 
 class ContinuousModel:
@@ -263,28 +309,57 @@ class ContinuousModel:
                 f"input_delay = {self.input_delay:g} s)")
 
 
+def _inputs(name: str, u: Any) -> List[np.ndarray]:
+    """``u`` as one float64 array per input: a 1-D array is one input, a 2-D array (samples in
+    rows, one column per input, as a DataFrame's values) or a list of 1-D arrays several."""
+    if isinstance(u, (list, tuple)) and len(u) > 0 and np.ndim(u[0]) == 1:
+        return [_f64(f"{name}[{i}]", x) for i, x in enumerate(u)]
+    if hasattr(u, "to_numpy"):
+        u = u.to_numpy()
+    a = np.asarray(u)
+    if a.ndim == 2:
+        return [_f64(f"{name}[:, {i}]", a[:, i]) for i in range(a.shape[1])]
+    return [_f64(name, a)]
+
+
+def _per_input(name: str, v: Union[int, Sequence[int]], m: int) -> List[int]:
+    """An order or delay for every input: one number for all, or a list of one per input."""
+    if np.ndim(v) == 0:
+        return [int(v)] * m
+    v = [int(x) for x in v]
+    if len(v) != m:
+        raise JobError(f"{name}: {len(v)} entries for {m} inputs: give one per input, or one number")
+    return v
+
+
 def fit(
     u: ArrayLike,
     y: ArrayLike,
-    nb: int,
-    nf: int,
+    nb: Union[int, Sequence[int]],
+    nf: Union[int, Sequence[int]],
     k: float,
     *,
-    delay: int = 1,
+    delay: Union[int, Sequence[int]] = 1,
     ts: float = 1.0,
     offset: str = "estimate",
     initial_state: str = "estimate",
     validation: Optional[tuple] = None,
 ) -> Model:
     """Fit OE(nb, nf) with delay by least squares and then Huber's criterion at k: the same
-    numbers as ``oesweep fit --json``. ``validation`` is a ``(u, y)`` pair that only judges."""
-    u, y = _f64("u", u), _f64("y", y)
-    val = None
+    numbers as ``oesweep fit --json``. ``validation`` is a ``(u, y)`` pair that only judges.
+
+    Several inputs: ``u`` a 2-D array (one column per input) or a list of 1-D arrays, and
+    ``nb``, ``nf``, ``delay`` one number for every input or a list of one per input; the
+    model's ``nb``, ``nf``, ``delay``, ``b``, ``f``, ``b_std``, ``f_std``, ``input_level`` then
+    hold one entry per input."""
+    us, y = _inputs("u", u), _f64("y", y)
+    m = len(us)
+    val_u = val_y = None
     if validation is not None:
-        val = (_f64("validation u", validation[0]), _f64("validation y", validation[1]))
+        val_u, val_y = _inputs("validation u", validation[0]), _f64("validation y", validation[1])
     text = _oesweep.fit(
-        u, y, int(nb), int(nf), float(k), int(delay), float(ts), offset, initial_state,
-        *(val if val is not None else (None, None)),
+        us, y, _per_input("nb", nb, m), _per_input("nf", nf, m), float(k), _per_input("delay", delay, m),
+        float(ts), offset, initial_state, val_u, val_y,
     )
     report = json.loads(text)
     fields = {key: report[key] for key in report if key not in ("ls",)}
@@ -296,7 +371,7 @@ def fit(
 def read(
     path: Union[str, os.PathLike],
     *,
-    u: Union[str, int] = "u",
+    u: Union[str, int, Sequence[Union[str, int]]] = "u",
     y: Union[str, int] = "y",
     rows: Optional[Sequence[int]] = None,
     delimiter: Optional[str] = None,
@@ -306,13 +381,20 @@ def read(
     file's record is (text with any delimiter and quoting, Parquet, MAT): ``u``, ``y`` a column
     name or a 1-based position, ``rows`` ``[first, last]`` (1-based, inclusive), ``delimiter``
     ``","``, ``";"``, ``"tab"`` or ``"whitespace"`` (default: sniffed), ``header`` ``True``,
-    ``False`` or ``"auto"``. ``oesweep.fit(*oesweep.read("run.csv", rows=[1, 5000]), ...)``."""
+    ``False`` or ``"auto"``. ``oesweep.fit(*oesweep.read("run.csv", rows=[1, 5000]), ...)``.
+    ``u`` a list of columns reads several inputs: ``u`` is then an N x m array."""
     spec: Dict[str, Any] = {"path": os.fspath(path), "u": u, "y": y}
     if rows is not None:
         spec["rows"] = list(rows)
     for key, value in (("delimiter", delimiter), ("header", header)):
         if value is not None:
             spec[key] = value
+    if isinstance(u, (list, tuple)):
+        # Several inputs: (N x m array, one column per input, y), as ``fit`` takes them.
+        spec["u"] = list(u)
+        _names, bu, by = _oesweep.read_inputs(json.dumps(spec))
+        y_arr = np.frombuffer(by, dtype="<f8").copy()
+        return np.frombuffer(bu, dtype="<f8").reshape(len(u), len(y_arr)).T.copy(), y_arr
     bu, by = _oesweep.read(json.dumps(spec))
     return np.frombuffer(bu, dtype="<f8").copy(), np.frombuffer(by, dtype="<f8").copy()
 

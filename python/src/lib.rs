@@ -6,6 +6,7 @@
 use oesweep::data::{Offset, Record};
 use oesweep::engine::{self, FitRequest, RunEnd, RunOptions, Watch};
 use oesweep::estimate::InitialState;
+use oesweep::oe::{MAX_INPUTS, Orders, Structure};
 use oesweep::spectral::SpectrumMethod;
 use pyo3::buffer::PyBuffer;
 use pyo3::create_exception;
@@ -52,42 +53,64 @@ fn parse<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> PyResult<T> {
         .map_err(|e| JobError::new_err(format!("{what} {v:?}: {e}")))
 }
 
-/// One model (`oesweep fit --json`'s report as JSON text) from float64 arrays.
+/// One model (`oesweep fit --json`'s report as JSON text) from float64 arrays: `u` one array
+/// per input, `nb`, `nf`, `delay` one entry per input (the Python side broadcasts them).
 #[pyfunction]
 #[pyo3(signature = (u, y, nb, nf, k, delay, ts, offset, initial_state, val_u=None, val_y=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit(
     py: Python<'_>,
-    u: &Bound<'_, PyAny>,
+    u: Vec<Bound<'_, PyAny>>,
     y: &Bound<'_, PyAny>,
-    nb: usize,
-    nf: usize,
+    nb: Vec<usize>,
+    nf: Vec<usize>,
     k: f64,
-    delay: usize,
+    delay: Vec<usize>,
     ts: f64,
     offset: &str,
     initial_state: &str,
-    val_u: Option<&Bound<'_, PyAny>>,
+    val_u: Option<Vec<Bound<'_, PyAny>>>,
     val_y: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<String> {
-    let est = Record::from_arrays("<u, y arrays>", floats("u", u)?, floats("y", y)?).map_err(to_py)?;
+    let inputs = |label: &str, arrays: &[Bound<'_, PyAny>]| -> PyResult<Vec<Vec<f64>>> {
+        let one = arrays.len() == 1;
+        arrays
+            .iter()
+            .enumerate()
+            .map(|(i, a)| floats(&if one { label.to_string() } else { format!("{label}[{i}]") }, a))
+            .collect()
+    };
+    let est = Record::from_input_arrays("<u, y arrays>", inputs("u", &u)?, floats("y", y)?).map_err(to_py)?;
     let val = match (val_u, val_y) {
         (Some(vu), Some(vy)) => Some(
-            Record::from_arrays("<validation arrays>", floats("validation u", vu)?, floats("validation y", vy)?)
+            Record::from_input_arrays("<validation arrays>", inputs("validation u", &vu)?, floats("validation y", vy)?)
                 .map_err(to_py)?,
         ),
         (None, None) => None,
         _ => return Err(DataError::new_err("validation needs both u and y")),
     };
+    if nb.len() != u.len() || nf.len() != u.len() || delay.len() != u.len() {
+        return Err(JobError::new_err(format!(
+            "{} inputs, but nb, nf and delay have {}, {} and {} entries: give one per input",
+            u.len(),
+            nb.len(),
+            nf.len(),
+            delay.len()
+        )));
+    }
+    let orders: Vec<Orders> = (0..u.len()).map(|i| Orders { nb: nb[i], nf: nf[i], delay: delay[i] }).collect();
+    let structure = Structure::new(&orders).ok_or_else(|| {
+        JobError::new_err(format!("{} inputs: between 1 and {MAX_INPUTS} are supported", orders.len()))
+    })?;
     let req = FitRequest::for_arrays(
-        (nb, nf, delay),
+        structure,
         k,
         ts,
         parse::<Offset>("offset", offset)?,
         parse::<InitialState>("initial_state", initial_state)?,
     );
     let report = py.detach(|| engine::fit_arrays(&req, est, val)).map_err(to_py)?;
-    serde_json::to_string(&report).map_err(|e| PyRuntimeError::new_err(e.to_string()))
+    Ok(report.to_json())
 }
 
 /// How often a running sweep looks at Python's signals (and calls the progress callback) while

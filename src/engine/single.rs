@@ -110,7 +110,7 @@ impl FitRequest {
     /// A request for records in memory ([`fit_arrays`]: the Python package's `oesweep.fit`),
     /// the other settings at `oesweep fit`'s defaults.
     pub fn for_arrays(
-        (nb, nf, delay): (usize, usize, usize),
+        structure: Structure,
         k: f64,
         ts: f64,
         offset: data::Offset,
@@ -118,7 +118,10 @@ impl FitRequest {
     ) -> FitRequest {
         FitRequest {
             data: PathBuf::from("<u, y arrays>"),
-            u: vec![ColumnRef::Name("u".into())],
+            u: match structure.m() {
+                1 => vec![ColumnRef::Name("u".into())],
+                m => (1..=m).map(|i| ColumnRef::Name(format!("u{i}"))).collect(),
+            },
             y: ColumnRef::Name("y".into()),
             rows: None,
             validation: None,
@@ -127,7 +130,7 @@ impl FitRequest {
             offset,
             initial_state,
             spectrum: spectral::SpectrumMethod::default(),
-            structure: Structure::siso(nb, nf, delay),
+            structure,
             k,
             ts: Some(ts),
             band: None,
