@@ -20,7 +20,13 @@ fn main() {
     let all: Vec<f64> = bytes.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
     let (u, y) = all.split_at(all.len() / 2);
     let (nb, nf, k, ts) = (nb.parse().unwrap(), nf.parse().unwrap(), k.parse().unwrap(), ts.parse().unwrap());
-    let req = FitRequest::for_arrays((nb, nf, 1), k, ts, Offset::Estimate, InitialState::Estimate);
+    let req = FitRequest::for_arrays(
+        oesweep::oe::Structure::siso(nb, nf, 1),
+        k,
+        ts,
+        Offset::Estimate,
+        InitialState::Estimate,
+    );
     let call = || {
         let (u, y) = (u.to_vec(), y.to_vec());
         let t0 = Instant::now();
