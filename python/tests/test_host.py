@@ -31,9 +31,10 @@ GIL_CHILD = textwrap.dedent(
     a = json.loads(sys.argv[1])
     u, y = np.array(a["u"]), np.array(a["y"])
     calls = {
-        "fit": lambda: _oesweep.fit(u, y, 2, 2, 0.5, 1, 0.01, "estimate", "estimate"),
+        "fit": lambda: _oesweep.fit([u], y, [2], [2], 0.5, [1], 0.01, "estimate", "estimate"),
         "spectrum": lambda: _oesweep.spectrum(u, y, 0.01, "robust"),
         "read": lambda: _oesweep.read(json.dumps({"path": a["csv"]})),
+        "read_inputs": lambda: _oesweep.read_inputs(json.dumps({"path": a["csv"], "u": ["u"]})),
         "run": lambda: _oesweep.run(a["job"], None, 1, False, True),
         "report": lambda: _oesweep.report(a["folder"]),
         "export": lambda: _oesweep.export(a["folder"], "m2"),

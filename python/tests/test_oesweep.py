@@ -104,8 +104,11 @@ def test_bad_inputs_raise_the_typed_errors_and_write_nothing(tmp_path):
         oesweep.fit(u, y_nan, 2, 2, 0.5)
     with pytest.raises(oesweep.DataError, match="must be equal"):
         oesweep.fit(u, y[:-1], 2, 2, 0.5)
-    with pytest.raises(oesweep.DataError, match="1-D"):
+    # A 2-D array is one input per column: the same column twice cannot be told apart.
+    with pytest.raises(oesweep.DataError, match="perfectly collinear"):
         oesweep.fit(np.c_[u, u], y, 2, 2, 0.5)
+    with pytest.raises(oesweep.DataError, match="1-D"):
+        oesweep.fit(np.zeros((len(u), 2, 2)), y, 2, 2, 0.5)
     with pytest.raises(oesweep.JobError, match="offset"):
         oesweep.fit(u, y, 2, 2, 0.5, offset="bogus")
     assert issubclass(oesweep.JobError, ValueError) and issubclass(oesweep.DataError, ValueError)
@@ -336,17 +339,20 @@ def test_arrays_cross_the_boundary_only_as_float64_buffers():
     from oesweep import _oesweep
 
     u, y = record()
-    args = (2, 2, 0.5, 1, 0.01, "estimate", "estimate")
+    # The native call takes one array per input and one order per input.
+    def native(u, y):
+        return _oesweep.fit([u], y, [2], [2], 0.5, [1], 0.01, "estimate", "estimate")
+
     # An address and a length are no array: the engine reads nothing it was not handed.
     with pytest.raises((oesweep.DataError, TypeError)):
-        _oesweep.fit((u.ctypes.data, u.size), (y.ctypes.data, y.size), *args)
+        native((u.ctypes.data, u.size), (y.ctypes.data, y.size))
     with pytest.raises(oesweep.DataError, match="u: expected a 1-D float64 array"):
-        _oesweep.fit(u.astype(np.float32), y, *args)
+        native(u.astype(np.float32), y)
     with pytest.raises(oesweep.DataError, match="2 dimensions"):
-        _oesweep.fit(np.c_[u, u], y, *args)
+        native(np.c_[u, u], y)
     # Strided views are copied through the buffer protocol as the values they show.
     uu, yy = np.repeat(u, 2), np.repeat(y, 2)
-    assert json.loads(_oesweep.fit(uu[::2], yy[::2], *args))["b"] == oesweep.fit(u, y, 2, 2, 0.5, ts=0.01).b
+    assert json.loads(native(uu[::2], yy[::2]))["b"] == oesweep.fit(u, y, 2, 2, 0.5, ts=0.01).b
 
 
 def test_a_dict_job_writes_nothing_but_its_output_folder(tmp_path, monkeypatch):

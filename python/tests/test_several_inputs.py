@@ -81,7 +81,7 @@ def test_read_gives_several_input_columns_as_one_array(tmp_path):
     with open(path, "w") as fh:
         fh.write("fuel,fan,temp\n")
         for a, b, c in zip(u[:, 0], u[:, 1], y):
-            fh.write(f"{a!r},{b!r},{c!r}\n")
+            fh.write(f"{float(a)!r},{float(b)!r},{float(c)!r}\n")
     got_u, got_y = oesweep.read(path, u=["fuel", "fan"], y="temp")
     assert got_u.shape == (200, 2)
     np.testing.assert_array_equal(got_u, u)
