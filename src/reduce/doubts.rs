@@ -15,7 +15,7 @@
 use super::rules::INDEPENDENCE_LEVEL;
 use super::{FitBasis, Rule, Selection, takes_part};
 use crate::estimate::least_squares::BOUNDARY;
-use crate::table::{CellRow, RowKey};
+use crate::table::{CellRow, FitKind, RowKey};
 use std::collections::BTreeMap;
 
 /// The searched ranges, inclusive: (smallest, largest).
@@ -133,19 +133,20 @@ fn grows_with_orders(rule: Rule, basis: FitBasis) -> bool {
 /// `beyond`: the models just beyond the edge RBIC's pick sits on, fitted from it
 /// (`engine::beyond`; empty when the records could not be read).
 pub fn pick_warnings(sel: &Selection, rows: &[CellRow], grid: &GridBounds, beyond: &[Beyond]) -> Vec<String> {
-    // model (per input (delay, nb, nf)) -> (a key of it, rules, max pole radius)
-    let mut models: BTreeMap<Vec<(u32, u32, u32)>, (RowKey, Vec<Rule>, f64)> = BTreeMap::new();
+    // model (its structure as a key: by input (delay, nb, nf)) -> (rules, max pole radius)
+    let mut models: BTreeMap<RowKey, (Vec<Rule>, f64)> = BTreeMap::new();
     let watched = |r: &Rule| *r == sel.rule || matches!(r, Rule::PaperM1 | Rule::PaperM2);
     for (rule, pick) in sel.picks.iter().filter(|(r, _)| watched(r)) {
         if let Some(m) = &pick.model {
-            let e = models.entry(m.key.orders()).or_insert((m.key, Vec::new(), 0.0));
-            e.1.push(*rule);
-            e.2 = e.2.max(m.fit.max_pole_radius.unwrap_or(0.0));
+            let model = RowKey::new(FitKind::Huber, &m.key.structure(), None);
+            let e = models.entry(model).or_insert((Vec::new(), 0.0));
+            e.0.push(*rule);
+            e.1 = e.1.max(m.fit.max_pole_radius.unwrap_or(0.0));
         }
     }
     let more = wants_more(sel, rows, grid, beyond);
     let mut out = Vec::new();
-    for (key, rules, radius) in models.into_values() {
+    for (key, (rules, radius)) in models {
         let names = rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
         let model = format!("{} (picked by {names})", key.label());
         let edges = grid.edges(&key);

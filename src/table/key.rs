@@ -179,7 +179,7 @@ mod tests {
     #[test]
     fn one_input_keys_sort_by_kind_delay_nb_nf_k() {
         let k = |kind, nb, nf, d, ki| RowKey::siso(kind, nb, nf, d, ki);
-        let mut keys = vec![
+        let mut keys = [
             k(FitKind::Huber, 1, 1, 1, Some(0)),
             k(FitKind::Huber, 1, 2, 0, Some(1)),
             k(FitKind::Huber, 1, 2, 0, Some(0)),
