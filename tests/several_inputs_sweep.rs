@@ -54,8 +54,8 @@ fn plan() -> Plan {
     Plan::product(&per_input, vec![0.5, 1.5], StartStrategy::Chains)
 }
 
-fn sweep_rows(plan: &Plan, est: &Record, val: &Record, threads: usize, done: Vec<CellRow>) -> Vec<CellRow> {
-    let ctx = Context {
+fn context<'a>(est: &'a Record, val: &'a Record) -> Context<'a> {
+    Context {
         est,
         val: Some(val),
         band: None,
@@ -63,8 +63,15 @@ fn sweep_rows(plan: &Plan, est: &Record, val: &Record, threads: usize, done: Vec
         levels: Levels::none(),
         initial_state: InitialState::default(),
         profile: None,
-    };
-    let control = Control { done, ..Control::none() };
+    }
+}
+
+fn sweep_rows(plan: &Plan, est: &Record, val: &Record, threads: usize, done: Vec<CellRow>) -> Vec<CellRow> {
+    sweep_with(plan, est, val, threads, Control { done, ..Control::none() })
+}
+
+fn sweep_with(plan: &Plan, est: &Record, val: &Record, threads: usize, control: Control) -> Vec<CellRow> {
+    let ctx = context(est, val);
     let out = sweep::run(plan, &ctx, threads, &Progress::new(0, true), control).expect("the sweep runs");
     assert!(!out.interrupted);
     let mut rows = out.rows;
@@ -148,6 +155,25 @@ fn a_two_input_sweep_picks_the_true_orders_and_is_the_same_on_any_thread_count()
     let done: Vec<CellRow> = rows.iter().filter(|r| r.key.nb == 1).cloned().collect();
     let resumed = sweep_rows(&plan, &est, &val, 2, done);
     assert!(resumed == rows, "a resumed run's table differs");
+}
+
+#[test]
+fn shards_of_a_two_input_plan_merged_give_the_whole_runs_table() {
+    let (est, val) = (record(800, 7), record(800, 8));
+    let plan = plan();
+    let whole = sweep_rows(&plan, &est, &val, 1, Vec::new());
+    let mut merged = Vec::new();
+    for index in 0..3 {
+        let (own, _) = oesweep::shard::plan_of(&plan, oesweep::shard::Shard { index, count: 3 });
+        assert!(own.pairs.len() < plan.pairs.len());
+        merged.extend(sweep_with(&own, &est, &val, 1, Control { nested: false, ..Control::none() }));
+    }
+    sweep::nested_pass(&plan, &context(&est, &val), &mut merged, 1).unwrap();
+    oesweep::table::sort_rows(&mut merged);
+    for r in &mut merged {
+        r.fit.seconds = 0.0;
+    }
+    assert!(merged == whole, "the merged shards' table differs from the whole run's");
 }
 
 #[test]

@@ -65,3 +65,44 @@ pub fn curves(rows: &[CellRow]) -> BTreeMap<CurveKey, Vec<&CellRow>> {
     }
     curves
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::oe::Structure;
+    use crate::table::Status;
+
+    /// An ok Huber row of two inputs (nF_1, nF_2), nB 1 and delay 0 each, with W = `w`.
+    fn row(nf1: usize, nf2: usize, w: f64) -> CellRow {
+        let o = |nf| Orders { nb: 1, nf, delay: 0 };
+        let s = Structure::new(&[o(nf1), o(nf2)]).unwrap();
+        let mut r = CellRow::failed(RowKey::huber(&s, 0), Some(1.0), String::new());
+        (r.status, r.reason) = (Status::Ok, None);
+        (r.fit.gamma, r.fit.criterion, r.fit.l1c) = (Some(0.1), Some(w), Some(0.1));
+        r
+    }
+
+    #[test]
+    fn a_minimum_of_several_inputs_is_one_on_every_inputs_line() {
+        // W over (nF_1, nF_2) in 1..3: the minimum of each row of nF_1 is at nF_2 = 2, but only
+        // (2, 2) is also the minimum of its column; (1, 3) is one on no line.
+        let w = [[5.0, 4.0, 4.5], [3.0, 2.0, 2.5], [3.5, 2.8, 2.9]];
+        let rows: Vec<CellRow> =
+            (0..3).flat_map(|i| (0..3).map(move |j| (i, j))).map(|(i, j)| row(i + 1, j + 1, w[i][j])).collect();
+        let got: Vec<(u32, u32)> =
+            minima(&rows, Curve::W, 1e-3).iter().map(|r| (r.key.nf, r.key.more.inputs()[0].nf as u32)).collect();
+        assert_eq!(got, vec![(2, 2)]);
+        // One input: the curve's minima, as before.
+        let one: Vec<CellRow> = [3.0, 2.0, 2.5, 1.0]
+            .iter()
+            .enumerate()
+            .map(|(i, &w)| {
+                let mut r = row(1, 1, w);
+                r.key = RowKey::huber(&Structure::siso(1, i + 1, 0), 0);
+                r
+            })
+            .collect();
+        let got: Vec<u32> = minima(&one, Curve::W, 1e-3).iter().map(|r| r.key.nf).collect();
+        assert_eq!(got, vec![2, 4]);
+    }
+}
