@@ -212,7 +212,7 @@ fn a_two_input_table_has_order_columns_per_input_and_reads_back_equal() {
 
 #[test]
 fn the_reducer_names_the_input_at_the_grids_edge() {
-    use oesweep::reduce::doubts::{GridBounds, pick_warnings};
+    use oesweep::reduce::doubts::{GridBounds, pick_warnings, pick_warnings_per_input};
     let (est, val) = (record(600, 5), record(600, 6));
     let per_input = vec![one_input_orders(&[2], &[1, 2], &[1]), one_input_orders(&[1], &[1, 2], &[2])];
     let plan = Plan::product(&per_input, vec![1.0], StartStrategy::Chains);
@@ -222,4 +222,9 @@ fn the_reducer_names_the_input_at_the_grids_edge() {
     let warnings = pick_warnings(&sel, &rows, &grid, &[]);
     assert!(warnings.iter().any(|w| w.contains("input 1's largest nB")), "{warnings:?}");
     assert!(warnings.iter().all(|w| w.contains("OE(2,")), "{warnings:?}");
+    // Per-input ranges: input 2's nF went up to 5, so only input 1 is on an edge.
+    let grids = [grid, GridBounds { nb: (1, 1), nf: (1, 5), delay: (2, 2) }];
+    let warnings = pick_warnings_per_input(&sel, &rows, &grids, &[]);
+    assert!(warnings.iter().any(|w| w.contains("input 1's largest nB")), "{warnings:?}");
+    assert!(warnings.iter().all(|w| !w.contains("input 2's")), "{warnings:?}");
 }
