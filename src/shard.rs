@@ -82,7 +82,7 @@ impl Shard {
 /// documentation).
 pub fn pair_cost(plan: &Plan, pair: usize) -> f64 {
     let p = plan.pairs[pair];
-    ((p.one().nb + p.one().nf) * (plan.ks.len() + 1)) as f64
+    (p.dim() * (plan.ks.len() + 1)) as f64
 }
 
 /// The pairs (indices into `plan.pairs`, ascending) of each of `count` shards.
@@ -126,14 +126,23 @@ pub fn plan_of(plan: &Plan, shard: Shard) -> (Plan, Vec<usize>) {
     (plan.with_pairs(&pairs), pairs)
 }
 
-/// The shard of `count` that owns the pair (nb, nf) of `plan`.
+/// The shard of `count` that owns the pair (nb, nf) of a one-input `plan` (its first delay).
 pub fn owner(plan: &Plan, count: usize, nb: usize, nf: usize) -> Result<usize> {
     let p = plan
         .pairs
         .iter()
-        .position(|q| q.one().nb == nb && q.one().nf == nf)
+        .position(|q| q.single().is_some_and(|o| o.nb == nb && o.nf == nf))
         .ok_or_else(|| Error::Invalid(format!("OE({nb}, {nf}) is not an order pair of the plan")))?;
-    Ok(layout(plan, count).iter().position(|s| s.contains(&p)).expect("every pair has a shard"))
+    owner_of(plan, count, p)
+}
+
+/// The shard of `count` that owns pair `p` (an index into `plan.pairs`), for any number of
+/// inputs.
+pub fn owner_of(plan: &Plan, count: usize, p: usize) -> Result<usize> {
+    layout(plan, count)
+        .iter()
+        .position(|s| s.contains(&p))
+        .ok_or_else(|| Error::Invalid(format!("pair {p} is not an order pair of the plan")))
 }
 
 /// Cells of a plan that a table lacks, by order pair.
@@ -168,7 +177,10 @@ impl Missing {
                 } else if !ks.is_empty() {
                     what.push(format!("k_index {}", ranges(ks)));
                 }
-                format!("OE({}, {}): {}", pair.one().nb, pair.one().nf, what.join(", "))
+                match pair.single() {
+                    Some(o) => format!("OE({}, {}): {}", o.nb, o.nf, what.join(", ")),
+                    None => format!("{}: {}", pair.label(), what.join(", ")),
+                }
             })
             .collect();
         if self.pairs.len() > limit {

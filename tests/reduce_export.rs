@@ -13,7 +13,7 @@ use std::fs::File;
 use std::path::Path;
 
 fn key(kind: FitKind, nb: u32, nf: u32, delay: u32, k_index: Option<u32>) -> RowKey {
-    RowKey { kind, delay, nb, nf, k_index }
+    RowKey::siso(kind, nb, nf, delay, k_index)
 }
 
 fn huber_row(nb: u32, nf: u32, k_index: u32, criterion: f64, fit_val: f64) -> CellRow {

@@ -142,11 +142,7 @@ mod tests {
         let w = Writer::start(dir.path().to_path_buf(), 7, Duration::from_secs(3600), 4);
         for nf in 0..10 {
             w.sender()
-                .send(CellRow::failed(
-                    RowKey { kind: FitKind::Huber, delay: 1, nb: 1, nf, k_index: Some(0) },
-                    Some(0.5),
-                    "x".into(),
-                ))
+                .send(CellRow::failed(RowKey::siso(FitKind::Huber, 1, nf, 1, Some(0)), Some(0.5), "x".into()))
                 .unwrap();
         }
         let saved = w.finish();
@@ -162,13 +158,7 @@ mod tests {
     fn checkpoint_writer_flushes_on_time() {
         let dir = tempfile::tempdir().unwrap();
         let w = Writer::start(dir.path().to_path_buf(), 1, Duration::from_millis(50), 1000);
-        w.sender()
-            .send(CellRow::failed(
-                RowKey { kind: FitKind::Ls, delay: 1, nb: 1, nf: 1, k_index: None },
-                None,
-                "x".into(),
-            ))
-            .unwrap();
+        w.sender().send(CellRow::failed(RowKey::siso(FitKind::Ls, 1, 1, 1, None), None, "x".into())).unwrap();
         // The part appears while the writer still runs (the sender is alive, the batch of 1000
         // is far from full), so only the timer can have written it. The test waits for that
         // state, however slow the machine; the bound only keeps a broken writer from hanging

@@ -60,12 +60,32 @@ fn picks(job: &ValidJob, rows: &[CellRow], inputs: Option<&Inputs>) -> Selection
     };
     let mut selection = reduce::select(rows, &sel_opts);
     selection.offset = Some(job.job.offset);
-    selection.input_level = inputs.map(|i| i.levels.u0(0));
+    if job.m == 1 {
+        selection.input_level = inputs.map(|i| i.levels.u0(0));
+    } else {
+        selection.input_levels = inputs.map(|i| (0..job.m).map(|k| i.levels.u0(k)).collect());
+    }
     selection.initial_state = Some(job.job.initial_state);
     selection.warnings = inputs.map(|i| i.warnings.clone()).unwrap_or_default();
     selection.warnings.extend(inputs.and_then(|i| uncertainty::integrating_doubt(&selection, i)));
     let bounds = |v: &[usize]| (v[0] as u32, v[v.len() - 1] as u32);
     let grid = reduce::doubts::GridBounds { nb: bounds(&job.nb), nf: bounds(&job.nf), delay: bounds(&job.delays) };
+    if job.m > 1 {
+        // The look beyond the grid's edge, the picks' covariances and their bootstrap are one
+        // input's so far (docs/ARCHITECTURE.md, "Several inputs").
+        let grids: Vec<_> = job
+            .grids
+            .iter()
+            .map(|g| reduce::doubts::GridBounds { nb: bounds(&g.nb), nf: bounds(&g.nf), delay: bounds(&g.delays) })
+            .collect();
+        selection.warnings.extend(reduce::doubts::pick_warnings_per_input(&selection, rows, &grids, &[]));
+        if !job.job.uncertainty.is_local() {
+            selection
+                .warnings
+                .push("the job asks for the bootstrap of the picks: not computed for several inputs yet".into());
+        }
+        return selection;
+    }
     let rbic_pick = selection.picks.get(&reduce::Rule::Rbic).and_then(|p| p.model.as_ref());
     let (beyond, models) = rayon::join(
         || match (rbic_pick, inputs) {

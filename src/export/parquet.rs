@@ -14,7 +14,7 @@
 //! error too.
 
 use crate::error::{Error, Result};
-use crate::table::{self, COLUMNS, CellRow, ColumnType, FitKind, RowKey, Value};
+use crate::table::{CellRow, ColumnType, FitKind, RowKey, TableColumn, Value, inputs_of_names, layout};
 use polars::prelude::*;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -47,7 +47,10 @@ pub fn read_cells(path: &Path) -> Result<Vec<CellRow>> {
     let file = File::open(path).map_err(|e| Error::input(path, format!("cannot open: {e}")))?;
     // The Parquet decoder trusts the file's metadata and can panic on a corrupt file; a bad file
     // must be an input error, not a crash of the sweep or the report.
-    let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| from_frame(&read_frame(file)?)));
+    let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let (df, m) = read_frame(file)?;
+        from_frame(&df, m)
+    }));
     match read {
         Ok(result) => result.map_err(|msg| Error::input(path, msg)),
         Err(payload) => {
@@ -63,7 +66,8 @@ pub fn read_cells(path: &Path) -> Result<Vec<CellRow>> {
 
 /// Read our columns only: the names are checked against the file's schema first so a missing
 /// one is named, and extra columns (possibly of types this build cannot decode) are skipped.
-fn read_frame(file: File) -> std::result::Result<DataFrame, String> {
+/// Returns the frame and the table's number of inputs (`nb` or `nb_1 ..`, [`inputs_of_names`]).
+fn read_frame(file: File) -> std::result::Result<(DataFrame, usize), String> {
     let unreadable = |e: PolarsError| format!("not a readable Parquet file: {e}");
     let len = file.metadata().map_err(|e| format!("cannot read: {e}"))?.len();
     let mut reader = ParquetReader::new(file.try_clone().map_err(|e| format!("cannot read: {e}"))?);
@@ -72,11 +76,13 @@ fn read_frame(file: File) -> std::result::Result<DataFrame, String> {
     let declared = meta.key_value_metadata().iter().flatten().find(|kv| kv.key == super::FORMAT_KEY);
     super::check_format(declared.map(|kv| kv.value.as_deref().unwrap_or(""))).map_err(|m| format!("metadata: {m}"))?;
     let schema = reader.schema().map_err(unreadable)?;
-    if let Some(c) = COLUMNS.iter().find(|c| !c.optional && !schema.contains(c.name)) {
+    let m = inputs_of_names(|n| schema.contains(n))?;
+    let columns = layout(m);
+    if let Some(c) = columns.iter().find(|c| !c.optional() && !schema.contains(&c.name)) {
         return Err(format!("missing column `{}` (not a table written by oesweep)", c.name));
     }
-    let names = COLUMNS.iter().filter(|c| schema.contains(c.name)).map(|c| c.name.to_string()).collect();
-    reader.with_columns(Some(names)).finish().map_err(unreadable)
+    let names = columns.iter().filter(|c| schema.contains(&c.name)).map(|c| c.name.clone()).collect();
+    Ok((reader.with_columns(Some(names)).finish().map_err(unreadable)?, m))
 }
 
 fn dtype(ty: ColumnType) -> DataType {
@@ -86,14 +92,28 @@ fn dtype(ty: ColumnType) -> DataType {
         ColumnType::F64 => DataType::Float64,
         ColumnType::Bool => DataType::Boolean,
         ColumnType::ListF64 => DataType::List(Box::new(DataType::Float64)),
+        ColumnType::ListListF64 => DataType::List(Box::new(DataType::List(Box::new(DataType::Float64)))),
     }
 }
 
+/// A list column of `Float64` lists.
+fn float_lists(name: PlSmallStr, lists: &[Option<Vec<f64>>]) -> ListChunked {
+    let len: usize = lists.iter().flatten().map(Vec::len).sum();
+    let mut builder = ListPrimitiveChunkedBuilder::<Float64Type>::new(name, lists.len(), len, DataType::Float64);
+    for l in lists {
+        match l {
+            Some(l) => builder.append_slice(l),
+            None => builder.append_null(),
+        }
+    }
+    builder.finish()
+}
+
 /// One column of the frame from the rows' values.
-fn to_column(c: &table::Column, rows: &[CellRow]) -> Column {
-    let name = c.name.into();
-    let values = rows.iter().map(|r| (c.get)(r));
-    match c.ty {
+fn to_column(c: &TableColumn, rows: &[CellRow]) -> PolarsResult<Column> {
+    let name: PlSmallStr = c.name.as_str().into();
+    let values = rows.iter().map(|r| c.get(r));
+    Ok(match c.ty {
         ColumnType::Str => {
             Column::new(name, values.map(|v| if let Value::Str(x) = v { x } else { None }).collect::<Vec<_>>())
         }
@@ -109,26 +129,38 @@ fn to_column(c: &table::Column, rows: &[CellRow]) -> Column {
         ColumnType::ListF64 => {
             let lists: Vec<Option<Vec<f64>>> =
                 values.map(|v| if let Value::ListF64(x) = v { x } else { None }).collect();
-            let len: usize = lists.iter().flatten().map(Vec::len).sum();
-            let mut builder = ListPrimitiveChunkedBuilder::<Float64Type>::new(name, rows.len(), len, DataType::Float64);
-            for l in &lists {
-                match l {
-                    Some(l) => builder.append_slice(l),
-                    None => builder.append_null(),
+            float_lists(name, &lists).into_column()
+        }
+        ColumnType::ListListF64 => {
+            let inner = DataType::List(Box::new(DataType::Float64));
+            let mut builder = polars::chunked_array::builder::get_list_builder(&inner, rows.len(), rows.len(), name);
+            for v in values {
+                match v {
+                    Value::ListListF64(Some(lists)) => {
+                        let lists: Vec<Option<Vec<f64>>> = lists.into_iter().map(Some).collect();
+                        builder.append_series(&float_lists(PlSmallStr::EMPTY, &lists).into_series())?
+                    }
+                    _ => builder.append_null(),
                 }
             }
             builder.finish().into_column()
         }
-    }
+    })
 }
 
+/// The frame of rows of one number of inputs (none: one input's layout).
 fn to_frame(rows: &[CellRow]) -> PolarsResult<DataFrame> {
-    DataFrame::new(rows.len(), COLUMNS.iter().map(|c| to_column(c, rows)).collect())
+    let m = rows.first().map_or(1, |r| r.key.m());
+    if let Some(r) = rows.iter().find(|r| r.key.m() != m) {
+        polars_bail!(ComputeError: "rows of {m} and of {} inputs in one table ({})", r.key.m(), r.key);
+    }
+    let columns = layout(m).iter().map(|c| to_column(c, rows)).collect::<PolarsResult<Vec<_>>>()?;
+    DataFrame::new(rows.len(), columns)
 }
 
 /// Look up a column by name and check its dtype. Errors name the column.
-fn column<'a>(df: &'a DataFrame, c: &table::Column) -> std::result::Result<&'a Column, String> {
-    let name = c.name;
+fn column<'a>(df: &'a DataFrame, c: &TableColumn) -> std::result::Result<&'a Column, String> {
+    let name = c.name.as_str();
     let col = df.column(name).map_err(|_| format!("missing column `{name}`"))?;
     let expected = dtype(c.ty);
     if *col.dtype() != expected {
@@ -143,8 +175,8 @@ fn column<'a>(df: &'a DataFrame, c: &table::Column) -> std::result::Result<&'a C
 
 /// The values of a column, one per row (checked: the decoded values must match the frame's
 /// height, see [`column`]).
-fn values(df: &DataFrame, c: &table::Column) -> std::result::Result<Vec<Value>, String> {
-    let name = c.name;
+fn values(df: &DataFrame, c: &TableColumn) -> std::result::Result<Vec<Value>, String> {
+    let name = c.name.as_str();
     let col = column(df, c)?;
     let dtype_err = |e: PolarsError| format!("column `{name}`: {e}");
     let values: Vec<Value> = match c.ty {
@@ -157,16 +189,26 @@ fn values(df: &DataFrame, c: &table::Column) -> std::result::Result<Vec<Value>, 
             .map_err(dtype_err)?
             .series_iter()
             .enumerate()
+            .map(|(i, s)| s.map(|s| floats(&s, name, i)).transpose().map(Value::ListF64))
+            .collect::<std::result::Result<_, String>>()?,
+        ColumnType::ListListF64 => col
+            .list()
+            .map_err(dtype_err)?
+            .series_iter()
+            .enumerate()
             .map(|(i, s)| {
                 s.map(|s| {
-                    s.f64()
+                    s.list()
                         .map_err(dtype_err)?
-                        .iter()
-                        .collect::<Option<Vec<f64>>>()
-                        .ok_or_else(|| format!("column `{name}`, row {i}: null inside the list"))
+                        .series_iter()
+                        .map(|l| {
+                            let l = l.ok_or_else(|| format!("column `{name}`, row {i}: null inside the list"))?;
+                            floats(&l, name, i)
+                        })
+                        .collect::<std::result::Result<Vec<_>, String>>()
                 })
                 .transpose()
-                .map(Value::ListF64)
+                .map(Value::ListListF64)
             })
             .collect::<std::result::Result<_, String>>()?,
     };
@@ -176,16 +218,27 @@ fn values(df: &DataFrame, c: &table::Column) -> std::result::Result<Vec<Value>, 
     Ok(values)
 }
 
-fn from_frame(df: &DataFrame) -> std::result::Result<Vec<CellRow>, String> {
+/// The values of one list of Float64 (row `i` of column `name`), without nulls.
+fn floats(s: &Series, name: &str, i: usize) -> std::result::Result<Vec<f64>, String> {
+    s.f64()
+        .map_err(|e| format!("column `{name}`: {e}"))?
+        .iter()
+        .collect::<Option<Vec<f64>>>()
+        .ok_or_else(|| format!("column `{name}`, row {i}: null inside the list"))
+}
+
+fn from_frame(df: &DataFrame, m: usize) -> std::result::Result<Vec<CellRow>, String> {
+    let columns = layout(m);
+    let present: Vec<&TableColumn> =
+        columns.iter().filter(|c| !c.optional() || df.column(c.name.as_str()).is_ok()).collect();
     // Check the whole schema first so the message names the first missing column in table order.
-    for c in COLUMNS.iter().filter(|c| !c.optional || df.column(c.name).is_ok()) {
+    for c in &present {
         column(df, c)?;
     }
-    let blank = RowKey { kind: FitKind::Huber, delay: 0, nb: 0, nf: 0, k_index: None };
-    let mut rows = vec![CellRow::empty(blank); df.height()];
-    for c in COLUMNS.iter().filter(|c| !c.optional || df.column(c.name).is_ok()) {
+    let mut rows = vec![CellRow::empty(RowKey::blank(FitKind::Huber, m)); df.height()];
+    for c in present {
         for (i, v) in values(df, c)?.into_iter().enumerate() {
-            table::columns::set(&mut rows[i], c, v).map_err(|e| format!("{e} (row {i})"))?;
+            c.set(&mut rows[i], v).map_err(|e| format!("{e} (row {i})"))?;
         }
     }
     if let Some((i, why)) = rows.iter().enumerate().find_map(|(i, r)| r.shape_error().map(|w| (i, w))) {
@@ -199,7 +252,7 @@ mod tests {
     use super::*;
 
     fn row(nf: u32) -> CellRow {
-        CellRow::failed(RowKey { kind: FitKind::Huber, delay: 1, nb: 3, nf, k_index: Some(0) }, Some(0.1), "x".into())
+        CellRow::failed(RowKey::siso(FitKind::Huber, 3, nf, 1, Some(0)), Some(0.1), "x".into())
     }
 
     #[test]

@@ -398,12 +398,12 @@ impl ValidJob {
     /// not yet. The one refusal of the sweep's entry points (`plan`, `run`, shards and `slurm`
     /// through [`crate::engine::prepare`], `merge`, and the report and export of a results
     /// folder): delete it, and its calls, when the sweep fits several inputs.
-    pub fn single_input_only(&self) -> Result<()> {
+    pub fn single_input_only(&self, what: &str) -> Result<()> {
         if self.m == 1 {
             return Ok(());
         }
         Err(Error::Invalid(format!(
-            "job '{}': {} inputs: the sweep fits a single input so far (issue 46)",
+            "job '{}': {} inputs: {what} is written for a single input so far (issue 46)",
             self.file.display(),
             self.m
         )))

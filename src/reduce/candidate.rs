@@ -2,14 +2,14 @@
 //! with its score; in `selection.json`, the row's reproducible columns and the score.
 
 use super::takes_part;
-use crate::table::columns::RowJson;
+use crate::table::RowJson;
 use crate::table::{CellRow, FitKind, RowKey, Status};
 use serde::{Deserialize, Serialize};
 
 /// A local minimum of a W or L1C curve: its table row and its score.
 ///
 /// In `selection.json` a candidate is the row's reproducible columns (all but the wall time,
-/// [`crate::table::columns::RowJson`]) with `score` after `fit_band`; read back, the wall time
+/// [`crate::table::RowJson`]) with `score` after `fit_band`; read back, the wall time
 /// is 0.
 #[derive(Clone, Debug)]
 pub struct Candidate {
@@ -53,9 +53,9 @@ impl<'de> Deserialize<'de> for Candidate {
             v => v.and_then(serde_json::Value::as_f64).ok_or_else(|| D::Error::missing_field("score"))?,
         };
         // Files of older versions hold only some columns; a candidate is an ok Huber row (rule 1).
-        let key = RowKey { kind: FitKind::Huber, delay: 0, nb: 0, nf: 0, k_index: None };
+        let key = RowKey::blank(FitKind::Huber, 1);
         let base = CellRow { status: Status::Ok, ..CellRow::empty(key) };
-        let row = crate::table::columns::row_from_json(&obj, base).map_err(D::Error::custom)?;
+        let row = crate::table::row_from_json(&obj, base).map_err(D::Error::custom)?;
         Ok(Candidate { row, score })
     }
 }

@@ -15,10 +15,11 @@
 use super::rules::INDEPENDENCE_LEVEL;
 use super::{FitBasis, Rule, Selection, takes_part};
 use crate::estimate::least_squares::BOUNDARY;
-use crate::table::CellRow;
+use crate::table::{CellRow, FitKind, RowKey};
 use std::collections::BTreeMap;
 
-/// The searched ranges, inclusive: (smallest, largest).
+/// The searched ranges, inclusive: (smallest, largest); of every input, or of one input
+/// ([`pick_warnings_per_input`]).
 #[derive(Clone, Copy, Debug)]
 pub struct GridBounds {
     pub nb: (u32, u32),
@@ -26,18 +27,29 @@ pub struct GridBounds {
     pub delay: (u32, u32),
 }
 
-impl GridBounds {
-    /// The edges of the grid a model (delay, nB, nF) sits on, as words.
-    fn edges(&self, (delay, nb, nf): (u32, u32, u32)) -> Vec<&'static str> {
+/// The searched ranges of every input: one [`GridBounds`] for all inputs, or one per input.
+#[derive(Clone, Copy, Debug)]
+struct Grid<'a>(&'a [GridBounds]);
+
+impl Grid<'_> {
+    /// The edges of the grid a model sits on, as words; for several inputs per input, naming
+    /// it: "input 2's largest nF".
+    fn edges(&self, key: &RowKey) -> Vec<String> {
+        let orders = key.orders();
         let mut edges = Vec::new();
-        if nb == self.nb.1 && self.nb.0 < self.nb.1 {
-            edges.push("the largest nB");
-        }
-        if nf == self.nf.1 && self.nf.0 < self.nf.1 {
-            edges.push("the largest nF");
-        }
-        if self.delay.0 < self.delay.1 && (delay == self.delay.1 || (delay == self.delay.0 && delay > 0)) {
-            edges.push("an edge delay");
+        for (i, &(delay, nb, nf)) in orders.iter().enumerate() {
+            let g = if self.0.len() == 1 { self.0.first() } else { self.0.get(i) };
+            let Some(g) = g else { continue };
+            let whose = if orders.len() == 1 { "the".to_string() } else { format!("input {}'s", i + 1) };
+            if nb == g.nb.1 && g.nb.0 < g.nb.1 {
+                edges.push(format!("{whose} largest nB"));
+            }
+            if nf == g.nf.1 && g.nf.0 < g.nf.1 {
+                edges.push(format!("{whose} largest nF"));
+            }
+            if g.delay.0 < g.delay.1 && (delay == g.delay.1 || (delay == g.delay.0 && delay > 0)) {
+                edges.push(if orders.len() == 1 { "an edge delay".into() } else { format!("{whose} edge delay") });
+            }
         }
         edges
     }
@@ -65,11 +77,11 @@ enum Evidence {
 /// Whether the data want a larger model than the grid offers: RBIC picks on the edge and a
 /// model just beyond it has a lower RBIC still (or nothing beyond it was fitted), or no model
 /// off the edges is independent of the input.
-fn wants_more(sel: &Selection, rows: &[CellRow], grid: &GridBounds, beyond: &[Beyond]) -> Evidence {
+fn wants_more(sel: &Selection, rows: &[CellRow], grid: Grid, beyond: &[Beyond]) -> Evidence {
     let name = |nb: u32, nf: u32, delay: u32| format!("OE({nb},{nf}) delay {delay}");
     let rbic = sel.picks.get(&Rule::Rbic).and_then(|p| p.model.as_ref().map(|m| (m, p.value)));
-    if let Some((m, Some(v))) = rbic.filter(|(m, _)| !grid.edges((m.key.delay, m.key.nb, m.key.nf)).is_empty()) {
-        let pick = name(m.key.nb, m.key.nf, m.key.delay);
+    if let Some((m, Some(v))) = rbic.filter(|(m, _)| !grid.edges(&m.key).is_empty()) {
+        let pick = m.key.label();
         let listed = |bs: &[&Beyond]| {
             bs.iter()
                 .map(|b| format!("{} ({:+.1})", name(b.nb, b.nf, b.delay), b.rbic - v))
@@ -104,8 +116,8 @@ fn wants_more(sel: &Selection, rows: &[CellRow], grid: &GridBounds, beyond: &[Be
 
 /// The Huber models off the grid's edges: how many have an independence test, and how many
 /// pass it.
-fn independent_inside(rows: &[CellRow], grid: &GridBounds) -> (usize, usize) {
-    let inside = rows.iter().filter(|r| takes_part(r) && grid.edges((r.key.delay, r.key.nb, r.key.nf)).is_empty());
+fn independent_inside(rows: &[CellRow], grid: Grid) -> (usize, usize) {
+    let inside = rows.iter().filter(|r| takes_part(r) && grid.edges(&r.key).is_empty());
     inside.fold((0, 0), |(tested, passed), r| match r.evidence.resid_indep_p {
         Some(p) => (tested + 1, passed + usize::from(p >= INDEPENDENCE_LEVEL)),
         None => (tested, passed),
@@ -128,22 +140,35 @@ fn grows_with_orders(rule: Rule, basis: FitBasis) -> bool {
 /// `beyond`: the models just beyond the edge RBIC's pick sits on, fitted from it
 /// (`engine::beyond`; empty when the records could not be read).
 pub fn pick_warnings(sel: &Selection, rows: &[CellRow], grid: &GridBounds, beyond: &[Beyond]) -> Vec<String> {
-    // model (delay, nb, nf) -> (rules, max pole radius)
-    let mut models: BTreeMap<(u32, u32, u32), (Vec<Rule>, f64)> = BTreeMap::new();
+    pick_warnings_per_input(sel, rows, std::slice::from_ref(grid), beyond)
+}
+
+/// [`pick_warnings`] with one [`GridBounds`] per input (a job whose inputs have grids of
+/// their own), or one for every input.
+pub fn pick_warnings_per_input(
+    sel: &Selection,
+    rows: &[CellRow],
+    grids: &[GridBounds],
+    beyond: &[Beyond],
+) -> Vec<String> {
+    let grid = Grid(grids);
+    // model (its structure as a key: by input (delay, nb, nf)) -> (rules, max pole radius)
+    let mut models: BTreeMap<RowKey, (Vec<Rule>, f64)> = BTreeMap::new();
     let watched = |r: &Rule| *r == sel.rule || matches!(r, Rule::PaperM1 | Rule::PaperM2);
     for (rule, pick) in sel.picks.iter().filter(|(r, _)| watched(r)) {
         if let Some(m) = &pick.model {
-            let e = models.entry((m.key.delay, m.key.nb, m.key.nf)).or_insert((Vec::new(), 0.0));
+            let model = RowKey::new(FitKind::Huber, &m.key.structure(), None);
+            let e = models.entry(model).or_insert((Vec::new(), 0.0));
             e.0.push(*rule);
             e.1 = e.1.max(m.fit.max_pole_radius.unwrap_or(0.0));
         }
     }
     let more = wants_more(sel, rows, grid, beyond);
     let mut out = Vec::new();
-    for ((delay, nb, nf), (rules, radius)) in models {
+    for (key, (rules, radius)) in models {
         let names = rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
-        let model = format!("OE({nb},{nf}) delay {delay} (picked by {names})");
-        let edges = grid.edges((delay, nb, nf));
+        let model = format!("{} (picked by {names})", key.label());
+        let edges = grid.edges(&key);
         if !edges.is_empty() {
             let edges = edges.join(" and ");
             out.push(match &more {
@@ -160,9 +185,11 @@ pub fn pick_warnings(sel: &Selection, rows: &[CellRow], grid: &GridBounds, beyon
                     } else {
                         String::new()
                     };
-                    let rbic = sel.picks.get(&Rule::Rbic).and_then(|p| p.model.as_ref()).map_or(String::new(), |m| {
-                        format!("; rbic picks OE({},{}) delay {} inside the grid", m.key.nb, m.key.nf, m.key.delay)
-                    });
+                    let rbic = sel
+                        .picks
+                        .get(&Rule::Rbic)
+                        .and_then(|p| p.model.as_ref())
+                        .map_or(String::new(), |m| format!("; rbic picks {} inside the grid", m.key.label()));
                     let (_, independent) = independent_inside(rows, grid);
                     let independent = if independent > 0 {
                         format!(", and {independent} models off the edges have residuals independent of the input")
@@ -195,7 +222,7 @@ mod tests {
     use crate::table::{CellRow, FitKind, RowKey, Status};
 
     fn row(nb: u32, nf: u32, fit: f64, radius: f64) -> CellRow {
-        let key = RowKey { kind: FitKind::Huber, delay: 1, nb, nf, k_index: Some(0) };
+        let key = RowKey::siso(FitKind::Huber, nb, nf, 1, Some(0));
         let mut r = CellRow::failed(key, Some(0.5), String::new());
         r.status = Status::Ok;
         r.reason = None;

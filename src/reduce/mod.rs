@@ -14,7 +14,8 @@
 //!    have a finite L1C and a k index, k and gamma, which every Huber fit has; a row lacking one is
 //!    malformed and ignored like a failed one. `failed` counts the `huber` rows with status
 //!    `"failed"`; `cells` counts all `huber` rows.
-//! 2. **Curves.** Rows are grouped by (delay, nB, k index) and sorted by nF. A curve's neighbours
+//! 2. **Curves.** Rows are grouped by (delay, nB, k index) and sorted by nF (several inputs:
+//!    one line per input's nF through each row, a minimum on all of them, `lines`). Neighbours
 //!    are the adjacent nF values *present* in the table: a failed cell is simply absent, so its
 //!    two neighbours become adjacent. (Should a cell appear twice, the row with the smaller
 //!    criterion is kept.) The W and L1C curves have the same points.
@@ -43,11 +44,13 @@
 
 mod candidate;
 pub mod doubts;
+mod lines;
 pub mod rules;
 mod settings;
 
 use crate::table::CellRow;
 pub use candidate::Candidate;
+pub use lines::{CurveKey, curves};
 pub use rules::{Rule, RulePick};
 use serde::{Deserialize, Serialize};
 pub use settings::{ReduceOptions, SelectionSettings};
@@ -103,12 +106,16 @@ impl FitBasis {
 
 /// Tie-break among candidates whose scores are within the fit tolerance (rule 6).
 fn tie_break(a: &Candidate, b: &Candidate) -> Ordering {
+    let nfs = |c: &Candidate| c.key.orders().iter().map(|o| o.2).collect::<Vec<_>>();
+    let delays = |c: &Candidate| c.key.orders().iter().map(|o| o.0).collect::<Vec<_>>();
     a.parameters()
         .cmp(&b.parameters())
-        .then(a.key.nf.cmp(&b.key.nf))
+        .then(a.key.nf_total().cmp(&b.key.nf_total()))
+        .then_with(|| nfs(a).cmp(&nfs(b)))
         .then(b.score.total_cmp(&a.score))
         .then(a.k_index().cmp(&b.k_index()))
-        .then(a.key.delay.cmp(&b.key.delay))
+        .then_with(|| delays(a).cmp(&delays(b)))
+        .then(a.key.cmp(&b.key))
 }
 
 /// Listing order: score descending, then the tie-break (rule 7).
@@ -152,6 +159,9 @@ pub struct Selection {
     /// The input level u0 taken out of both records (the model is `B/F (u - u0) + offset`).
     #[serde(default)]
     pub input_level: Option<f64>,
+    /// Several inputs: one level per input (and no `input_level`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input_levels: Option<Vec<f64>>,
     /// The initial state `fit` and `fit_val` were computed with.
     #[serde(default)]
     pub initial_state: Option<crate::estimate::InitialState>,
@@ -263,40 +273,13 @@ impl Curve {
     }
 }
 
-/// Key of a curve: (delay, nB, k index).
-pub type CurveKey = (u32, u32, Option<u32>);
-
-/// Rules 1-2: the curves over nF, one per (delay, nB, k index), of the rows that take part,
-/// sorted by nF; a repeated cell keeps its lower criterion. A BTreeMap, so the result does not
-/// depend on the order of the rows.
-pub fn curves(rows: &[CellRow]) -> BTreeMap<CurveKey, Vec<&CellRow>> {
-    let mut curves: BTreeMap<CurveKey, Vec<&CellRow>> = BTreeMap::new();
-    for r in rows.iter().filter(|r| takes_part(r)) {
-        curves.entry((r.key.delay, r.key.nb, r.key.k_index)).or_default().push(r);
-    }
-    for curve in curves.values_mut() {
-        // Sort by nF, duplicates by criterion, so dedup keeps the better fit of a repeated cell.
-        curve.sort_by(|a, b| a.key.nf.cmp(&b.key.nf).then(Curve::W.value(a).total_cmp(&Curve::W.value(b))));
-        curve.dedup_by_key(|r| r.key.nf);
-    }
-    curves
-}
-
 /// Apply rules 1-7 to a result table.
 pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
     let cells = crate::table::huber_rows(rows);
     let failed = crate::table::failed_cells(rows);
 
-    let mut w_minima = Vec::new();
-    let mut l1c_minima = Vec::new();
-    for curve in curves(rows).values() {
-        for (kind, minima) in [(Curve::W, &mut w_minima), (Curve::L1c, &mut l1c_minima)] {
-            let values: Vec<f64> = curve.iter().map(|r| kind.value(r)).collect();
-            minima.extend(
-                local_minima(&values, kind.tolerance(opts.settings.min_tolerance)).into_iter().map(|i| curve[i]),
-            );
-        }
-    }
+    let w_minima = lines::minima(rows, Curve::W, opts.settings.min_tolerance);
+    let l1c_minima = lines::minima(rows, Curve::L1c, opts.settings.min_tolerance);
 
     let m1 = pick(&w_minima, opts, Curve::W);
     let m2 = pick(&l1c_minima, opts, Curve::L1c);
@@ -314,6 +297,7 @@ pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
         fit_tolerance: opts.settings.fit_tolerance,
         offset: None,
         input_level: None,
+        input_levels: None,
         initial_state: None,
         warnings: Vec::new(),
         bootstrap: Vec::new(),
@@ -362,12 +346,15 @@ fn pick(minima: &[&CellRow], opts: &ReduceOptions, curve: Curve) -> Option<Pick>
             model.parameters()
         )
     };
+    let (over, per) = match model.key.m() {
+        1 => ("nF", "nB and k"),
+        _ => ("each input's nF", "input and the other orders and k"),
+    };
     let rule = format!(
-        "OE({},{}) at k = {} (k index {}) with {basis} {:.3}%: chosen among {} local {} over nF of {curve_name} \
-         (one curve per nB and k, {tolerance}){skipped}; the best {basis} is {best:.3}%, ties are \
+        "{} at k = {} (k index {}) with {basis} {:.3}%: chosen among {} local {} over {over} of {curve_name} \
+         (one curve per {per}, {tolerance}){skipped}; the best {basis} is {best:.3}%, ties are \
          within {} points of it; this model is {how}",
-        model.key.nb,
-        model.key.nf,
+        model.key.short_label(),
         crate::text::k(model.k()),
         model.k_index(),
         model.score,
@@ -384,7 +371,7 @@ mod tests {
     use crate::table::{FitKind, RowKey, Status};
 
     fn key(kind: FitKind, nb: u32, nf: u32, k_index: Option<u32>) -> RowKey {
-        RowKey { kind, delay: 1, nb, nf, k_index }
+        RowKey::siso(kind, nb, nf, 1, k_index)
     }
 
     /// An ok Huber row; `fit` is used for all three fit columns unless changed.

@@ -18,7 +18,7 @@
 //! (nB, nF, delay) by the same measure) and one sentence saying why.
 
 use super::{Candidate, FitBasis, Pick, ReduceOptions, takes_part, tie_break};
-use crate::table::{CellRow, FitKind};
+use crate::table::{CellRow, FitKind, PerInput};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -103,9 +103,10 @@ fn in_sample_note(basis: FitBasis) -> String {
 /// The best model of another structure by the same measure.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RunnerUp {
-    pub nb: u32,
-    pub nf: u32,
-    pub delay: u32,
+    /// Its orders: numbers for one input, one entry per input for several.
+    pub nb: PerInput,
+    pub nf: PerInput,
+    pub delay: PerInput,
     /// Null for an `ls` row.
     pub k: Option<f64>,
     pub value: f64,
@@ -147,11 +148,24 @@ fn candidate(row: &CellRow, opts: &ReduceOptions) -> Candidate {
     Candidate { row: row.clone(), score: opts.basis.score(row).filter(|s| s.is_finite()).unwrap_or(f64::NAN) }
 }
 
+impl RunnerUp {
+    /// `OE(nB,nF) delay d` for one input, [`crate::oe::Structure::label`] for several.
+    pub fn label(&self) -> String {
+        match (&self.nb, &self.nf, &self.delay) {
+            (PerInput::Several(nb), PerInput::Several(nf), PerInput::Several(d)) => {
+                let parts: Vec<String> = nb.iter().zip(nf).zip(d).map(|((b, f), d)| format!("{b},{f} d{d}")).collect();
+                format!("OE({})", parts.join("; "))
+            }
+            (nb, nf, d) => format!("OE({nb},{nf}) delay {d}"),
+        }
+    }
+}
+
 fn runner_up(chosen: &CellRow, ranked: &[(&CellRow, f64)]) -> Option<RunnerUp> {
     ranked.iter().find(|(r, _)| r.key.structure() != chosen.key.structure()).map(|(r, v)| RunnerUp {
-        nb: r.key.nb,
-        nf: r.key.nf,
-        delay: r.key.delay,
+        nb: PerInput::of(&r.key, |o| o.nb),
+        nf: PerInput::of(&r.key, |o| o.nf),
+        delay: PerInput::of(&r.key, |o| o.delay),
         k: r.k,
         value: *v,
     })
@@ -159,8 +173,8 @@ fn runner_up(chosen: &CellRow, ranked: &[(&CellRow, f64)]) -> Option<RunnerUp> {
 
 fn name(r: &CellRow) -> String {
     match r.k {
-        Some(k) => format!("OE({},{}) delay {} at k = {}", r.key.nb, r.key.nf, r.key.delay, crate::text::k(k)),
-        None => format!("OE({},{}) delay {} (least squares)", r.key.nb, r.key.nf, r.key.delay),
+        Some(k) => format!("{} at k = {}", r.key.label(), crate::text::k(k)),
+        None => format!("{} (least squares)", r.key.label()),
     }
 }
 
@@ -204,14 +218,7 @@ fn minimum(rows: &[CellRow], rule: Rule, opts: &ReduceOptions) -> RulePick {
     };
     let up = runner_up(best, &ranked);
     let versus = up.as_ref().map_or(String::new(), |u| {
-        format!(
-            "; the runner-up OE({},{}) delay {} has {measure} = {:.4} ({:+.4})",
-            u.nb,
-            u.nf,
-            u.delay,
-            u.value,
-            u.value - v
-        )
+        format!("; the runner-up {} has {measure} = {:.4} ({:+.4})", u.label(), u.value, u.value - v)
     });
     RulePick {
         measure: measure.to_string(),
@@ -248,9 +255,7 @@ fn best_fit(pool: Vec<&CellRow>, opts: &ReduceOptions, note: Option<String>) -> 
             opts.settings.fit_tolerance
         )
     };
-    let versus = up.as_ref().map_or(String::new(), |u| {
-        format!("; the runner-up OE({},{}) delay {} has {:.3} %", u.nb, u.nf, u.delay, u.value)
-    });
+    let versus = up.as_ref().map_or(String::new(), |u| format!("; the runner-up {} has {:.3} %", u.label(), u.value));
     RulePick {
         measure: measure.to_string(),
         value: Some(model.score),
@@ -308,7 +313,7 @@ mod tests {
     use crate::table::{RowKey, Status};
 
     fn row(kind: FitKind, nb: u32, nf: u32, k_index: Option<u32>, fit_val: f64) -> CellRow {
-        let key = RowKey { kind, delay: 1, nb, nf, k_index };
+        let key = RowKey::siso(kind, nb, nf, 1, k_index);
         let mut r = CellRow::failed(key, k_index.map(|i| 0.5 + i as f64), String::new());
         r.status = Status::Ok;
         r.reason = None;
@@ -352,7 +357,10 @@ mod tests {
         let orders = |rule: Rule| picks[&rule].model.as_ref().map(|m| (m.key.nb, m.key.nf, m.key.kind));
         assert_eq!(orders(Rule::Aic), Some((3, 3, FitKind::Ls)));
         assert_eq!(picks[&Rule::Aic].value, Some(50.0));
-        assert_eq!(picks[&Rule::Aic].runner_up.as_ref().map(|u| (u.nb, u.value)), Some((4, 55.0)));
+        assert_eq!(
+            picks[&Rule::Aic].runner_up.as_ref().map(|u| (u.nb.clone(), u.value)),
+            Some((PerInput::One(4), 55.0))
+        );
         assert_eq!(orders(Rule::Raic), Some((4, 4, FitKind::Huber)));
         assert_eq!(picks[&Rule::Raic].model.as_ref().unwrap().k_index(), 0);
         // RBIC = -fit + 2 np: (2,2) at -87, (3,3) at -83.02.

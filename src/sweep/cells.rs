@@ -93,7 +93,7 @@ pub(super) fn huber_cell(
     let _span = Span::start(ctx.profile.as_deref(), Phase::Huber);
     ws.role = Role::Other;
     let run = catch_unwind(AssertUnwindSafe(|| {
-        crate::failpoint::before_cell(pair.one().nb, pair.one().nf, cell.k_index);
+        crate::failpoint::before_cell(pair.inputs()[0].nb, pair.inputs()[0].nf, cell.k_index);
         // theta_LS, then the pair's extra starts; the lowest criterion wins, ties the earlier.
         let from_ls = |ws: &mut Workspace| {
             let (fit, which) =

@@ -54,7 +54,7 @@ pub(super) fn tasks(plan: &Plan, nested_starts: bool, nested_check: bool) -> (Ve
     let ls_pairs = plan.ls_pairs();
     let subs = plan.ls_sub_models();
     let n = ls_pairs.len();
-    let size = |s: &Structure| (s.one().nb + s.one().nf) as u64;
+    let size = |s: &Structure| s.dim() as u64;
     let mut tasks: Vec<Task> = (0..n).map(Task::Ls).chain((0..n).map(Task::LsOwn)).collect();
     let mut after: Vec<Vec<usize>> = subs
         .iter()
@@ -144,9 +144,9 @@ pub(super) fn task_times(plan: &Plan, tasks: &[Task], graph: &schedule::Graph) -
             TaskTime {
                 id,
                 kind,
-                nb: pair.one().nb,
-                nf: pair.one().nf,
-                delay: pair.one().delay,
+                nb: pair.inputs()[0].nb,
+                nf: pair.inputs()[0].nf,
+                delay: pair.inputs()[0].delay,
                 k_index,
                 after: graph.after[id].clone(),
                 priority: graph.priority[id],

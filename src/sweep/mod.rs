@@ -85,7 +85,7 @@ impl Context<'_> {
         Problem {
             u: &self.est.u,
             y: &self.est.y,
-            structure: Structure::siso(pair.one().nb, pair.one().nf, pair.one().delay),
+            structure: *pair,
             offset: self.levels.mode.estimated(),
             seams: &self.est.seams,
         }
@@ -93,7 +93,7 @@ impl Context<'_> {
 
     /// The parameters a row holds, as the solver takes them.
     fn theta(&self, row: &CellRow) -> Vec<f64> {
-        estimate::theta_of(&row.fit.b, &row.fit.f, self.levels.estimated_c(row.fit.offset))
+        estimate::theta_in(&row.key.structure(), &row.fit.b, &row.fit.f, self.levels.estimated_c(row.fit.offset))
     }
 
     /// `row` with its `offset` in the data's units.
@@ -400,7 +400,7 @@ impl Sweep<'_> {
                 .filter_map(|&s| {
                     let (sub, _) = self.pair_fit(s)?;
                     let (_, theta) = sub.start.as_ref()?;
-                    Some(estimate::embed(theta, ls_pairs[s].one().nb, ls_pairs[s].one().nf, &prob))
+                    Some(crate::plan::embed(theta, &ls_pairs[s], pair, prob.offset))
                 })
                 .collect();
             self.pair_ls(pair, p, &nested, ws)

@@ -2,7 +2,7 @@
 //! same k.
 //!
 //! OE(nB - 1, nF) and OE(nB, nF - 1) are OE(nB, nF) with one coefficient zero, so the
-//! sub-model's solution embedded ([`estimate::embed`]) is a point of the larger model with the
+//! sub-model's solution embedded ([`crate::plan::embed`]) is a point of the larger model with the
 //! same criterion W at the same gamma... when both share sigma, which they do not: gamma = k
 //! sigma of each pair's own least-squares fit. The embedded point is therefore only a start:
 //! where a sub-model's cell has the lower W, the cell is refitted warm from it and keeps the
@@ -23,7 +23,6 @@
 use super::{Context, Workspaces};
 use crate::error::Result;
 use crate::estimate::{self, Judge, StartKind};
-use crate::oe::Structure;
 use crate::plan::Plan;
 use crate::profile::Role;
 use crate::table::{CellRow, RowKey};
@@ -54,30 +53,29 @@ pub(super) fn check_cell<'r>(
     let w = row.fit.criterion.filter(|w| row.ok() && w.is_finite())?;
     let sigma = row.fit.sigma?;
     let key = row.key;
-    let sub =
-        [key.nb.checked_sub(1).map(|nb| RowKey { nb, ..key }), key.nf.checked_sub(1).map(|nf| RowKey { nf, ..key })]
-            .into_iter()
-            .flatten()
-            .filter_map(sub)
-            // Rows read back from a checkpoint fit their orders: the reader refuses others
-            // (`CellRow::shape_error`).
-            .filter(|s| s.ok())
-            .filter_map(|s| s.fit.criterion.filter(|v| *v < w * (1.0 - LOWER)).map(|v| (v, s)))
-            // The lower of the two (ties: the smaller nB, listed first).
-            .fold(None, |best: Option<(f64, &CellRow)>, (v, s)| match best {
-                Some((b, _)) if b <= v => best,
-                _ => Some((v, s)),
-            })?
-            .1;
+    let pair = key.structure();
+    let sub = crate::plan::sub_structures(&pair)
+        .iter()
+        .map(|s| RowKey::new(key.kind, s, key.k_index))
+        .filter_map(sub)
+        // Rows read back from a checkpoint fit their orders: the reader refuses others
+        // (`CellRow::shape_error`).
+        .filter(|s| s.ok())
+        .filter_map(|s| s.fit.criterion.filter(|v| *v < w * (1.0 - LOWER)).map(|v| (v, s)))
+        // The lowest (ties: the first listed, input by input, nB before nF).
+        .fold(None, |best: Option<(f64, &CellRow)>, (v, s)| match best {
+            Some((b, _)) if b <= v => best,
+            _ => Some((v, s)),
+        })?
+        .1;
     let k_index = key.k_index? as usize;
-    let pair = Structure::siso(key.nb as usize, key.nf as usize, key.delay as usize);
     let prob = ctx.problem(&pair);
     let warm = ctx.solver.huber_warm();
     let t = Instant::now();
     // A panic (in the numerics, or an edited row's parameters that do not embed) keeps the cell
     // as the walk left it.
     let fit = catch_unwind(AssertUnwindSafe(|| {
-        let start = estimate::embed(&ctx.theta(sub), sub.key.nb as usize, sub.key.nf as usize, &prob);
+        let start = crate::plan::embed(&ctx.theta(sub), &sub.key.structure(), &pair, prob.offset);
         workspaces.with(|ws| {
             ws.role = Role::Back;
             estimate::fit_huber(&prob, sigma, plan.ks[k_index], &start, judge, &warm, ws)
@@ -100,7 +98,7 @@ pub fn nested_pass(plan: &Plan, ctx: &Context, rows: &mut [CellRow], threads: us
     let index: HashMap<RowKey, usize> = rows.iter().enumerate().map(|(i, r)| (r.key, i)).collect();
     let mut waves: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
     for (i, row) in rows.iter().enumerate().filter(|(_, r)| r.is_huber()) {
-        waves.entry(row.key.nb + row.key.nf).or_default().push(i);
+        waves.entry(row.parameters()).or_default().push(i);
     }
     let pool = crate::pool::local(threads, "for the nested check")?;
     let t0 = Instant::now();

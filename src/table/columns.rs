@@ -6,9 +6,11 @@
 //! README's column reference all follow this list, so they cannot disagree.
 
 use super::{CellRow, FitKind, Status};
-use serde::ser::{Serialize, SerializeMap, Serializer};
+use serde::ser::{Serialize, Serializer};
 
-/// The storage type of a column (Parquet: String, UInt32, Float64, Boolean, List(Float64)).
+/// The storage type of a column (Parquet: String, UInt32, Float64, Boolean, List(Float64),
+/// List(List(Float64))). `ListListF64` only holds a several-input row's coefficients, one list
+/// per input ([`super::layout`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ColumnType {
     Str,
@@ -16,6 +18,7 @@ pub enum ColumnType {
     F64,
     Bool,
     ListF64,
+    ListListF64,
 }
 
 /// One value of a column (`None`: null).
@@ -26,6 +29,7 @@ pub enum Value {
     F64(Option<f64>),
     Bool(Option<bool>),
     ListF64(Option<Vec<f64>>),
+    ListListF64(Option<Vec<Vec<f64>>>),
 }
 
 impl Value {
@@ -36,6 +40,7 @@ impl Value {
             Value::F64(v) => v.is_none(),
             Value::Bool(v) => v.is_none(),
             Value::ListF64(v) => v.is_none(),
+            Value::ListListF64(v) => v.is_none(),
         }
     }
 
@@ -47,6 +52,7 @@ impl Value {
             ColumnType::F64 => Value::F64(None),
             ColumnType::Bool => Value::Bool(None),
             ColumnType::ListF64 => Value::ListF64(None),
+            ColumnType::ListListF64 => Value::ListListF64(None),
         }
     }
 
@@ -59,11 +65,23 @@ impl Value {
         if v.is_null() {
             return Ok(Value::null(ty));
         }
+        if ty == ColumnType::ListListF64 {
+            let lists = v.as_array().ok_or_else(bad)?;
+            let inner = lists
+                .iter()
+                .map(|l| match Value::from_json(ColumnType::ListF64, l)? {
+                    Value::ListF64(Some(l)) => Ok(l),
+                    _ => Err(bad()),
+                })
+                .collect::<Result<_, _>>()?;
+            return Ok(Value::ListListF64(Some(inner)));
+        }
         Ok(match ty {
             ColumnType::Str => Value::Str(Some(v.as_str().ok_or_else(bad)?.to_string())),
             ColumnType::U32 => Value::U32(Some(v.as_u64().and_then(|x| u32::try_from(x).ok()).ok_or_else(bad)?)),
             ColumnType::F64 => Value::F64(Some(v.as_f64().ok_or_else(bad)?)),
             ColumnType::Bool => Value::Bool(Some(v.as_bool().ok_or_else(bad)?)),
+            ColumnType::ListListF64 => unreachable!("read above"),
             ColumnType::ListF64 => Value::ListF64(Some(
                 v.as_array()
                     .ok_or_else(bad)?
@@ -86,6 +104,7 @@ impl Serialize for Value {
             Value::F64(v) => v.serialize(s),
             Value::Bool(v) => v.serialize(s),
             Value::ListF64(v) => v.serialize(s),
+            Value::ListListF64(v) => v.serialize(s),
         }
     }
 }
@@ -163,6 +182,44 @@ macro_rules! named_cell {
 named_cell!(FitKind);
 named_cell!(Status);
 
+/// How a column of one input's table becomes columns of a several-input table
+/// ([`super::layout`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Split {
+    /// The same column.
+    No,
+    /// An order (`nb`, `nf`, `delay`): one plain integer column per input, `nb_1 .. nb_m`.
+    Order(OrderField),
+    /// Coefficients held flat (every input's after the other) in the row: one list per input,
+    /// of nB_i (`b`, `b_std`) or nF_i (`f`, `f_std`) values.
+    Coefficients(OrderField),
+}
+
+/// One of an input's orders.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OrderField {
+    Nb,
+    Nf,
+    Delay,
+}
+
+impl OrderField {
+    pub fn get(self, o: &crate::oe::Orders) -> usize {
+        match self {
+            OrderField::Nb => o.nb,
+            OrderField::Nf => o.nf,
+            OrderField::Delay => o.delay,
+        }
+    }
+    pub fn set(self, o: &mut crate::oe::Orders, v: usize) {
+        match self {
+            OrderField::Nb => o.nb = v,
+            OrderField::Nf => o.nf = v,
+            OrderField::Delay => o.delay = v,
+        }
+    }
+}
+
 /// One column of the table.
 pub struct Column {
     pub name: &'static str,
@@ -175,18 +232,27 @@ pub struct Column {
     /// The value is the same on every run of the same job (all but the wall time): such
     /// columns make up a pick in `selection.json`.
     pub reproducible: bool,
+    /// What the column becomes in a table of several inputs.
+    pub split: Split,
     pub get: fn(&CellRow) -> Value,
     pub set: fn(&mut CellRow, Value) -> Result<(), String>,
 }
 
 macro_rules! column {
-    (@ $name:literal, $t:ty, $optional:literal, $reproducible:literal, |$r:ident| $place:expr) => {
+    (@opt optional) => {
+        true
+    };
+    (@opt) => {
+        false
+    };
+    (@ $name:literal, $t:ty, $optional:expr, $reproducible:expr, $split:expr, |$r:ident| $place:expr) => {
         Column {
             name: $name,
             ty: <$t as Cell>::TYPE,
             nullable: <$t as Cell>::NULLABLE,
             optional: $optional,
             reproducible: $reproducible,
+            split: $split,
             get: |$r| Cell::to_value(&$place),
             set: |$r, v| {
                 $place = <$t as Cell>::from_value(v)?;
@@ -195,22 +261,28 @@ macro_rules! column {
         }
     };
     ($name:literal, $t:ty, |$r:ident| $place:expr) => {
-        column!(@ $name, $t, false, true, |$r| $place)
+        column!(@ $name, $t, false, true, Split::No, |$r| $place)
     };
     (optional $name:literal, $t:ty, |$r:ident| $place:expr) => {
-        column!(@ $name, $t, true, true, |$r| $place)
+        column!(@ $name, $t, true, true, Split::No, |$r| $place)
     };
     (wall_time $name:literal, $t:ty, |$r:ident| $place:expr) => {
-        column!(@ $name, $t, false, false, |$r| $place)
+        column!(@ $name, $t, false, false, Split::No, |$r| $place)
+    };
+    (order $field:ident $name:literal, |$r:ident| $place:expr) => {
+        column!(@ $name, u32, false, true, Split::Order(OrderField::$field), |$r| $place)
+    };
+    (coefficients $field:ident $($opt:ident)? $name:literal, |$r:ident| $place:expr) => {
+        column!(@ $name, Vec<f64>, column!(@opt $($opt)?), true, Split::Coefficients(OrderField::$field), |$r| $place)
     };
 }
 
 /// The columns of `cells.parquet`, in table order (docs/JOBS.md "Columns of cells.parquet").
 pub const COLUMNS: &[Column] = &[
     column!("method", FitKind, |r| r.key.kind),
-    column!("nb", u32, |r| r.key.nb),
-    column!("nf", u32, |r| r.key.nf),
-    column!("delay", u32, |r| r.key.delay),
+    column!(order Nb "nb", |r| r.key.nb),
+    column!(order Nf "nf", |r| r.key.nf),
+    column!(order Delay "delay", |r| r.key.delay),
     column!("k_index", Option<u32>, |r| r.key.k_index),
     column!("k", Option<f64>, |r| r.k),
     column!("sigma", Option<f64>, |r| r.fit.sigma),
@@ -229,11 +301,11 @@ pub const COLUMNS: &[Column] = &[
     column!("reflections", Option<u32>, |r| r.fit.reflections),
     column!("start", String, |r| r.fit.start),
     column!(wall_time "seconds", f64, |r| r.fit.seconds),
-    column!("b", Vec<f64>, |r| r.fit.b),
-    column!("f", Vec<f64>, |r| r.fit.f),
+    column!(coefficients Nb "b", |r| r.fit.b),
+    column!(coefficients Nf "f", |r| r.fit.f),
     column!(optional "offset", Option<f64>, |r| r.fit.offset),
-    column!(optional "b_std", Vec<f64>, |r| r.evidence.b_std),
-    column!(optional "f_std", Vec<f64>, |r| r.evidence.f_std),
+    column!(coefficients Nb optional "b_std", |r| r.evidence.b_std),
+    column!(coefficients Nf optional "f_std", |r| r.evidence.f_std),
     column!(optional "offset_std", Option<f64>, |r| r.evidence.offset_std),
     column!(optional "max_rel_std", Option<f64>, |r| r.evidence.max_rel_std),
     column!(optional "resid_white_p", Option<f64>, |r| r.evidence.resid_white_p),
@@ -260,57 +332,6 @@ pub fn set(row: &mut CellRow, c: &Column, v: Value) -> Result<(), String> {
         return Err(format!("column `{}`: null in a column that must not have nulls", c.name));
     }
     (c.set)(row, v).map_err(|e| format!("column `{}`: {e}", c.name))
-}
-
-/// A row as a JSON object of its reproducible columns, in table order, with `extra` entries
-/// written right after the column `after` (how a pick carries its score).
-pub struct RowJson<'a> {
-    pub row: &'a CellRow,
-    pub extra: &'a [(&'a str, f64)],
-    pub after: &'a str,
-}
-
-impl Serialize for RowJson<'_> {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut map = s.serialize_map(None)?;
-        for c in COLUMNS.iter().filter(|c| c.reproducible) {
-            map.serialize_entry(c.name, &(c.get)(self.row))?;
-            if c.name == self.after {
-                for (name, v) in self.extra {
-                    map.serialize_entry(name, v)?;
-                }
-            }
-        }
-        map.end()
-    }
-}
-
-/// A row as JSON: every column, in table order.
-impl Serialize for CellRow {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut map = s.serialize_map(Some(COLUMNS.len()))?;
-        for c in COLUMNS {
-            map.serialize_entry(c.name, &(c.get)(self))?;
-        }
-        map.end()
-    }
-}
-
-/// A row from a JSON object written by [`RowJson`]: columns absent from it take the values of
-/// `base`; other keys are ignored.
-pub fn row_from_json(obj: &serde_json::Map<String, serde_json::Value>, mut base: CellRow) -> Result<CellRow, String> {
-    for c in COLUMNS.iter().filter(|c| c.reproducible) {
-        if let Some(v) = obj.get(c.name) {
-            set(&mut base, c, Value::from_json(c.ty, v).map_err(|e| format!("field `{}`: {e}", c.name))?)?;
-        }
-    }
-    // selection.json files of older versions hold only some columns: a row without parameters
-    // is read as before, one with parameters must fit its orders.
-    let has_parameters = !(base.fit.b.is_empty() && base.fit.f.is_empty());
-    match base.shape_error().filter(|_| has_parameters) {
-        Some(why) => Err(format!("{}: {why}", base.key)),
-        None => Ok(base),
-    }
 }
 
 #[cfg(test)]
@@ -340,11 +361,11 @@ mod tests {
         names.sort();
         names.dedup();
         assert_eq!(names.len(), COLUMNS.len());
-        let key = RowKey { kind: FitKind::Huber, delay: 2, nb: 3, nf: 4, k_index: Some(5) };
+        let key = RowKey::siso(FitKind::Huber, 3, 4, 2, Some(5));
         let mut row = CellRow::failed(key, Some(0.5), "why".into());
         row.fit.b = vec![1.0, 2.0];
         row.evidence.max_rel_std = Some(f64::INFINITY);
-        let mut back = CellRow::empty(RowKey { kind: FitKind::Ls, delay: 0, nb: 0, nf: 0, k_index: None });
+        let mut back = CellRow::empty(RowKey::blank(FitKind::Ls, 1));
         for c in COLUMNS {
             let v = (c.get)(&row);
             assert_eq!(std::mem::discriminant(&v), std::mem::discriminant(&Value::null(c.ty)), "{}", c.name);

@@ -13,11 +13,15 @@
 //! and nulls instead of numbers.
 
 pub mod columns;
+mod key;
+mod layout;
 
 use crate::estimate::evidence::Evidence;
 use crate::estimate::{Assessment, HuberFit, LsFit, StartKind, Termination};
 use crate::oe::Structure;
 pub use columns::{COLUMNS, Column, ColumnType, Value};
+pub use key::{More, PerInput, RowKey};
+pub use layout::{RowJson, TableColumn, inputs_of_names, layout, row_from_json};
 
 /// Which fit a row holds (the `method` column).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -51,55 +55,6 @@ crate::names::names!(Status { Ok = "ok", Failed = "failed" });
 impl Status {
     pub fn parse(s: &str) -> Result<Self, String> {
         Self::from_name(s).ok_or_else(|| format!("unknown status {s:?}"))
-    }
-}
-
-/// Identity of a row in a table. A complete table has exactly one row per key of its plan.
-/// The derived order (fit kind with `ls` first, then delay, nB, nF, k index) is the row order
-/// of `cells.parquet`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub struct RowKey {
-    pub kind: FitKind,
-    pub delay: u32,
-    pub nb: u32,
-    pub nf: u32,
-    /// Index of k in the job's k grid (None for `ls` rows).
-    pub k_index: Option<u32>,
-}
-
-impl RowKey {
-    /// Key of the Huber row of cell (pair, k_index).
-    pub fn huber(pair: &Structure, k_index: usize) -> Self {
-        RowKey {
-            kind: FitKind::Huber,
-            delay: pair.one().delay as u32,
-            nb: pair.one().nb as u32,
-            nf: pair.one().nf as u32,
-            k_index: Some(k_index as u32),
-        }
-    }
-
-    /// Key of the least-squares row of a pair.
-    pub fn ls(pair: &Structure) -> Self {
-        RowKey {
-            kind: FitKind::Ls,
-            delay: pair.one().delay as u32,
-            nb: pair.one().nb as u32,
-            nf: pair.one().nf as u32,
-            k_index: None,
-        }
-    }
-
-    /// The order pair's structure `(nb, nf, delay)`.
-    pub fn structure(&self) -> (u32, u32, u32) {
-        (self.nb, self.nf, self.delay)
-    }
-}
-
-/// As messages name a row: `huber nb=3 nf=4 k_index=Some(0)`.
-impl std::fmt::Display for RowKey {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{} nb={} nf={} k_index={:?}", self.kind.as_str(), self.nb, self.nf, self.k_index)
     }
 }
 
@@ -231,7 +186,7 @@ impl CellRow {
 
     /// Row of a least-squares fit.
     pub fn from_ls(ls: &LsFit, seconds: f64) -> Self {
-        let pair = Structure::siso(ls.nb, ls.nf, ls.delay);
+        let pair = ls.structure;
         let fitted = Fitted {
             criterion: ls.criterion,
             assessment: &ls.assessment,
@@ -296,7 +251,9 @@ impl CellRow {
     /// since the nested pass, a resumed chain and the exports embed its parameters by its
     /// orders. A failed row holds no parameters; standard deviations may be absent.
     pub fn shape_error(&self) -> Option<String> {
-        let (nb, nf) = (self.key.nb as usize, self.key.nf as usize);
+        let s = self.key.structure();
+        let nb: usize = s.inputs().iter().map(|o| o.nb).sum();
+        let nf: usize = s.inputs().iter().map(|o| o.nf).sum();
         let fits = |what: &str, len: usize, want: usize, may_be_empty: bool| {
             (len != want && !(may_be_empty && len == 0))
                 .then(|| format!("{len} values in `{what}`, its orders need {want}"))
@@ -321,13 +278,15 @@ impl CellRow {
         self.key.kind == FitKind::Huber
     }
 
-    /// Number of estimated polynomial coefficients, nB + nF.
+    /// Number of estimated polynomial coefficients, nB + nF (several inputs: the sum over
+    /// the inputs, [`Structure::dim`]).
     pub fn parameters(&self) -> u32 {
-        self.key.nb + self.key.nf
+        self.key.structure().dim() as u32
     }
 }
 
-/// Sort rows as in `cells.parquet`: `ls` rows first, then by delay, nb, nf, k_index.
+/// Sort rows as in `cells.parquet`: `ls` rows first, then by delay, nb, nf (input after
+/// input), k_index.
 pub fn sort_rows(rows: &mut [CellRow]) {
     rows.sort_by_key(|r| r.key);
 }
