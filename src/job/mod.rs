@@ -403,7 +403,7 @@ impl ValidJob {
             return Ok(());
         }
         Err(Error::Invalid(format!(
-            "job '{}': {} inputs: {what} is written for a single input so far (issue 46)",
+            "job '{}': {} inputs: {what} is one input's so far (issue 46)",
             self.file.display(),
             self.m
         )))
