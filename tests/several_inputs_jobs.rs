@@ -352,6 +352,10 @@ fn a_job_of_several_inputs_runs_and_what_is_one_input_s_refuses_by_name() {
     let selection: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(root.join("out/selection.json")).unwrap()).unwrap();
     assert_eq!(selection["input_levels"].as_array().map(Vec::len), Some(2), "one level per input");
+    // M1's covariance over every input's parameters and the offset: nB_1 + nF_1 + nB_2 + nF_2 + 1.
+    let m1 = &selection["m1"];
+    let dim = m1["nb_1"].as_u64().unwrap() + 1 + 1 + 1 + 1;
+    assert_eq!(m1["covariance"].as_array().map(|c| c.len() as u64), Some(dim * dim), "{m1}: d x d, row-major");
     // The report and the export are one input's so far: one line, exit 2.
     let want = "error: job 'out/job.json': 2 inputs: the report or an export is one input's so far";
     for args in [vec!["report", "out"], vec!["export", "out", "--to", "json"]] {

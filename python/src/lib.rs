@@ -288,14 +288,8 @@ fn to_continuous(py: Python<'_>, doc: &str, method: &str) -> PyResult<String> {
 /// fields), as little-endian float64 bytes.
 #[pyfunction]
 fn read(py: Python<'_>, spec: &str) -> PyResult<(Py<PyBytes>, Py<PyBytes>)> {
-    let spec: oesweep::job::DataSpec =
-        serde_json::from_str(spec).map_err(|e| JobError::new_err(format!("record: {e}")))?;
-    let rec = py.detach(|| oesweep::job::read_record(&spec)).map_err(to_py)?;
-    let bytes = |v: &[f64]| -> Py<PyBytes> {
-        let raw: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
-        PyBytes::new(py, &raw).unbind()
-    };
-    Ok((bytes(&rec.u), bytes(&rec.y)))
+    let (_, u, y) = read_inputs(py, spec)?;
+    Ok((u, y))
 }
 
 /// [`read`] of a record of several inputs (`u` a list of columns in the record's JSON): the

@@ -10,7 +10,6 @@
 use crate::estimate::least_squares::BOUNDARY;
 use crate::estimate::{self, Problem};
 use crate::job::{Inputs, Uncertainty};
-use crate::oe::Structure;
 use crate::reduce::{PickBootstrap, Rule, Selection};
 use crate::table::CellRow;
 use rayon::prelude::*;
@@ -22,8 +21,9 @@ pub const REMEDY: &str = "a bootstrap that includes the search: `\"uncertainty\"
 /// The same advice when the job's bootstrap ran.
 const REMEDY_DONE: &str = "the bootstrap's intervals of this model (selection.json `bootstrap`)";
 
-/// A picked cell: (delay, nB, nF, k index).
-type Cell = (u32, u32, u32, Option<u32>);
+/// A picked cell: (delay, nB, nF, k index) of the first input, then the other inputs' orders
+/// (the order of one input's cells as before).
+type Cell = (u32, u32, u32, Option<u32>, crate::table::More);
 
 /// The models picked by a watched rule, each with the rules that picked it, in a fixed order.
 fn watched_models(sel: &Selection) -> Vec<(Vec<Rule>, &CellRow)> {
@@ -31,7 +31,7 @@ fn watched_models(sel: &Selection) -> Vec<(Vec<Rule>, &CellRow)> {
     let watched = |r: &Rule| *r == sel.rule || matches!(r, Rule::PaperM1 | Rule::PaperM2);
     for (rule, pick) in sel.picks.iter().filter(|(r, _)| watched(r)) {
         if let Some(m) = &pick.model {
-            let key = (m.key.delay, m.key.nb, m.key.nf, m.key.k_index);
+            let key = cell(&m.row);
             models.entry(key).or_insert((Vec::new(), &m.row)).0.push(*rule);
         }
     }
@@ -65,7 +65,7 @@ impl PickModels {
                 let inside = row.fit.max_pole_radius.unwrap_or(0.0) < BOUNDARY;
                 let check = cov.as_ref().filter(|_| watched && inside).map(|cov| {
                     let prob = problem(row, inputs);
-                    let theta = estimate::theta_of(&row.fit.b, &row.fit.f, inputs.levels.estimated_c(row.fit.offset));
+                    let theta = theta(row, inputs);
                     estimate::quadratic::check(&prob, &theta, loss(row), cov)
                 });
                 (c, (cov, check))
@@ -91,7 +91,12 @@ impl PickModels {
 }
 
 fn cell(row: &CellRow) -> Cell {
-    (row.key.delay, row.key.nb, row.key.nf, row.key.k_index)
+    (row.key.delay, row.key.nb, row.key.nf, row.key.k_index, row.key.more)
+}
+
+/// The row's parameters as the solver takes them (any number of inputs).
+fn theta(row: &CellRow, inputs: &Inputs) -> Vec<f64> {
+    estimate::theta_in(&row.key.structure(), &row.fit.b, &row.fit.f, inputs.levels.estimated_c(row.fit.offset))
 }
 
 /// The warnings, one per watched model; `bootstrapped`: the job's bootstrap ran (the remedy
@@ -102,7 +107,7 @@ pub fn pick_doubts(sel: &Selection, models: &PickModels, inputs: &Inputs, bootst
         .filter_map(|(rules, row)| {
             let names = rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
             let k = row.k.map_or("least squares".to_string(), |k| format!("k = {}", crate::text::k(k)));
-            let model = format!("OE({},{}) delay {} {k} (picked by {names})", row.key.nb, row.key.nf, row.key.delay);
+            let model = format!("{} {k} (picked by {names})", row.key.label());
             let radius = row.fit.max_pole_radius.unwrap_or(0.0);
             // A boundary pick has its warning, with this doubt, from `reduce::doubts`.
             if radius >= BOUNDARY {
@@ -124,10 +129,10 @@ pub fn integrating_doubt(sel: &Selection, inputs: &Inputs) -> Option<String> {
         .into_iter()
         .map(|(rules, row)| {
             let names = rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
-            let name = format!("OE({},{}) delay {} (picked by {names})", row.key.nb, row.key.nf, row.key.delay);
+            let name = format!("{} (picked by {names})", row.key.label());
             let radius = row.fit.max_pole_radius.unwrap_or(0.0);
             let drift = integrating::judged_by_residuals(radius).then(|| {
-                let theta = estimate::theta_of(&row.fit.b, &row.fit.f, inputs.levels.estimated_c(row.fit.offset));
+                let theta = theta(row, inputs);
                 integrating::residual_drift(&problem(row, inputs), &theta)
             });
             Judged { name, radius, drift }
@@ -178,7 +183,7 @@ pub fn bootstrap_picks(
 pub fn quadratic_check(row: &CellRow, inputs: &Inputs) -> Option<estimate::quadratic::QuadraticCheck> {
     let cov = covariance_of(row, inputs)?;
     let prob = problem(row, inputs);
-    let theta = estimate::theta_of(&row.fit.b, &row.fit.f, inputs.levels.estimated_c(row.fit.offset));
+    let theta = theta(row, inputs);
     Some(estimate::quadratic::check(&prob, &theta, loss(row), &cov))
 }
 
@@ -187,7 +192,7 @@ pub(super) fn problem<'a>(row: &CellRow, inputs: &'a Inputs) -> Problem<'a> {
     Problem {
         u: &inputs.est.u,
         y: &inputs.est.y,
-        structure: Structure::siso(row.key.nb as usize, row.key.nf as usize, row.key.delay as usize),
+        structure: row.key.structure(),
         offset: inputs.levels.mode.estimated(),
         seams: &inputs.est.seams,
     }
@@ -203,7 +208,7 @@ pub(super) fn loss(row: &CellRow) -> estimate::Loss {
 /// parameter when the job estimated it; robust for a Huber row (METHOD.md 10).
 pub(super) fn covariance_of(c: &CellRow, inputs: &Inputs) -> Option<Vec<f64>> {
     let prob = problem(c, inputs);
-    let theta = estimate::theta_of(&c.fit.b, &c.fit.f, inputs.levels.estimated_c(c.fit.offset));
+    let theta = theta(c, inputs);
     let yhat = prob.simulate_vec(&theta);
     estimate::evidence::covariance(&prob, &theta, loss(c), &yhat)
 }

@@ -71,8 +71,8 @@ fn picks(job: &ValidJob, rows: &[CellRow], inputs: Option<&Inputs>) -> Selection
     let bounds = |v: &[usize]| (v[0] as u32, v[v.len() - 1] as u32);
     let grid = reduce::doubts::GridBounds { nb: bounds(&job.nb), nf: bounds(&job.nf), delay: bounds(&job.delays) };
     if job.m > 1 {
-        // The look beyond the grid's edge, the picks' covariances and their bootstrap are one
-        // input's so far (docs/ARCHITECTURE.md, "Several inputs").
+        // The look beyond the grid's edge and the picks' bootstrap are one input's so far
+        // (docs/ARCHITECTURE.md, "Several inputs"); the picks' covariances and doubts any m's.
         let grids: Vec<_> = job
             .grids
             .iter()
@@ -83,6 +83,13 @@ fn picks(job: &ValidJob, rows: &[CellRow], inputs: Option<&Inputs>) -> Selection
             selection
                 .warnings
                 .push("the job asks for the bootstrap of the picks: not computed for several inputs yet".into());
+        }
+        if let Some(inputs) = inputs {
+            let models = uncertainty::PickModels::of(&selection, inputs);
+            selection.warnings.extend(uncertainty::pick_doubts(&selection, &models, inputs, false));
+            for pick in [selection.m1.as_mut(), selection.m2.as_mut()].into_iter().flatten() {
+                pick.covariance = models.covariance(&pick.model, inputs);
+            }
         }
         return selection;
     }
