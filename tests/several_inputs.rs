@@ -208,3 +208,43 @@ fn the_initial_state_of_several_inputs_is_fitted_when_judging() {
     assert!(zero < 99.0, "the past matters on this record: {zero}");
     assert!(fitted > 99.99, "the fitted initial state explains it: {fitted}");
 }
+
+/// The reported standard deviations of a two-input Huber fit at the true orders match the
+/// spread of its estimates over 200 noise realisations with 5 % spikes (within 25 %, as
+/// tests/evidence.rs asks of one input; the spread itself is known to ~5 %).
+#[test]
+fn reported_std_of_several_inputs_matches_the_spread_over_realisations() {
+    let sys = &system()[..2];
+    let (u, y0) = record(sys, 2000, &[], 0.0);
+    let (opts, judge) = (SolverOptions::default(), Judge::default());
+    let mut ws = Workspace::new();
+    let (mut estimates, mut stds) = (Vec::new(), Vec::new());
+    for seed in 0..200 {
+        let mut rng = Lcg(1000 + seed);
+        let y: Vec<f64> = y0
+            .iter()
+            .map(|v| {
+                let mut e = 0.1 * rng.normal();
+                if rng.next() < 0.05 {
+                    e += (1.0 + 2.0 * rng.next()) * if rng.next() < 0.5 { -1.0 } else { 1.0 };
+                }
+                v + e
+            })
+            .collect();
+        let prob = Problem { u: &u, y: &y, structure: structure_of(sys), offset: false, seams: &[] };
+        let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
+        let h = estimate::fit_huber(&prob, ls.sigma, 0.3, &ls.theta(), &judge, &opts, &mut ws);
+        assert!(h.termination.converged(), "{:?}", h.termination);
+        // Both flat in the fits' order: every input's b, then every input's f.
+        estimates.push([&h.b[..], &h.f[..]].concat());
+        stds.push([&h.assessment.evidence.b_std[..], &h.assessment.evidence.f_std[..]].concat());
+    }
+    let m = estimates.len() as f64;
+    for i in 0..estimates[0].len() {
+        let mean = estimates.iter().map(|t| t[i]).sum::<f64>() / m;
+        let spread = (estimates.iter().map(|t| (t[i] - mean).powi(2)).sum::<f64>() / (m - 1.0)).sqrt();
+        let reported = stds.iter().map(|s| s[i]).sum::<f64>() / m;
+        eprintln!("parameter {i}: reported / spread = {:.3}", reported / spread);
+        assert!((reported / spread - 1.0).abs() <= 0.25, "parameter {i}: reported {reported:.3e}, spread {spread:.3e}");
+    }
+}
