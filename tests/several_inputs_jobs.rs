@@ -344,6 +344,15 @@ fn a_job_of_several_inputs_runs_and_what_is_one_input_s_refuses_by_name() {
     });
     let file = write_job(&root, &job);
     let path = file.to_str().unwrap();
+    // The plan names each input's ranges and their product, and counts samples, not values.
+    let plan = common::run_oesweep(&root, &["plan", path], LIMIT);
+    assert_eq!(plan.code, Some(0), "{}", plan.stderr);
+    assert!(plan.stdout.contains("(400 samples"), "{}", plan.stdout);
+    assert!(
+        plan.stdout.contains("u1: nB 1..2 x nF 1 x delay 1; u2: nB 1 x nF 1 x delay 0; their product: 2 structures"),
+        "{}",
+        plan.stdout
+    );
     let (code, err) = oesweep(&root, &["run", path, "--quiet"]);
     assert_eq!(code, Some(0), "{err}");
     // The product of the grids: nB 1..2 of input 1 times one structure of input 2.

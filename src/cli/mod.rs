@@ -246,7 +246,7 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
         "data       {}{} ({} samples, Ts = {} s)",
         j.job.data.first().path.display(),
         more(j.job.data.specs.len()),
-        p.inputs.est.u.len(),
+        p.inputs.est.len(),
         j.ts()
     );
     if let (Some(v), Some(rec)) = (&j.job.validation, &p.inputs.val) {
@@ -254,7 +254,7 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
             "validation {}{} ({} samples, column '{}')",
             v.first().path.display(),
             more(v.specs.len()),
-            rec.u.len(),
+            rec.len(),
             rec.y_name
         );
     }

@@ -141,6 +141,26 @@ fn print_intervals(
 pub(super) fn describe_grid(p: &Prepared) -> String {
     let (job, ks) = (&p.job, &p.job.ks);
     let (kmin, kmax) = ks.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &k| (a.min(k), b.max(k)));
+    if job.m > 1 {
+        // Several inputs: each input's ranges, then the product the sweep runs.
+        let span = |v: &[usize]| {
+            if v[0] == v[v.len() - 1] { v[0].to_string() } else { format!("{}..{}", v[0], v[v.len() - 1]) }
+        };
+        let inputs: Vec<String> = job
+            .grids
+            .iter()
+            .enumerate()
+            .map(|(i, g)| format!("u{}: nB {} x nF {} x delay {}", i + 1, span(&g.nb), span(&g.nf), span(&g.delays)))
+            .collect();
+        return format!(
+            "{}; their product: {} structures x {} values of k in [{kmin}, {kmax}]; offset {}, initial state {}",
+            inputs.join("; "),
+            p.plan.pairs.len(),
+            ks.len(),
+            job.job.offset.as_str(),
+            job.job.initial_state.as_str(),
+        );
+    }
     let (d0, d1) = (job.delays[0], job.delays[job.delays.len() - 1]);
     let delays = if d0 == d1 { format!("delay {d0}") } else { format!("delay {d0}..{d1}") };
     format!(
