@@ -26,6 +26,7 @@ pub mod report;
 pub mod results;
 pub(crate) mod rng;
 pub mod schedule;
+pub mod search;
 pub mod shard;
 pub mod simulate;
 pub mod slurm;

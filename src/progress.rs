@@ -11,7 +11,7 @@ const PLAIN_EVERY: Duration = Duration::from_secs(5);
 
 pub struct Progress {
     bar: Option<ProgressBar>,
-    total: usize,
+    total: AtomicUsize,
     done: AtomicUsize,
     start: Instant,
     last_line: Mutex<Instant>,
@@ -33,7 +33,14 @@ impl Progress {
             b
         });
         let now = Instant::now();
-        Progress { bar, total, done: AtomicUsize::new(0), start: now, last_line: Mutex::new(now), quiet }
+        Progress {
+            bar,
+            total: AtomicUsize::new(total),
+            done: AtomicUsize::new(0),
+            start: now,
+            last_line: Mutex::new(now),
+            quiet,
+        }
     }
 
     pub fn message(&self, msg: &str) {
@@ -61,9 +68,18 @@ impl Progress {
             *last = Instant::now();
             let secs = self.start.elapsed().as_secs_f64();
             let rate = done as f64 / secs.max(1e-9);
-            let eta = (self.total.saturating_sub(done)) as f64 / rate.max(1e-9);
-            eprintln!("{done}/{} cells, {rate:.1} cells/s, {secs:.0} s elapsed, ETA {eta:.0} s", self.total);
+            let total = self.total.load(Ordering::Relaxed);
+            let eta = (total.saturating_sub(done)) as f64 / rate.max(1e-9);
+            eprintln!("{done}/{total} cells, {rate:.1} cells/s, {secs:.0} s elapsed, ETA {eta:.0} s");
         }
+    }
+
+    /// Count `n` more cells to do (a coordinate search learns its rounds' cells as it goes).
+    pub fn grow(&self, n: usize) {
+        if let Some(b) = &self.bar {
+            b.inc_length(n as u64);
+        }
+        self.total.fetch_add(n, Ordering::Relaxed);
     }
 
     pub fn finish(&self) {

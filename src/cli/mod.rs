@@ -237,6 +237,7 @@ fn run_simulate(a: &SimulateArgs) -> Result<u8> {
 fn run_plan(a: &PlanArgs) -> Result<u8> {
     let p = engine::prepare(&a.job)?;
     if let Some(n) = a.shards {
+        p.search.check_shardable(&format!("--shards {n}"))?;
         shard::check_count(n, &p.plan).map_err(|m| Error::Invalid(format!("--shards {n}: {m}")))?;
     }
     let j = &p.job;
@@ -259,7 +260,29 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
         );
     }
     outln!("grid       {}", describe_grid(&p));
-    outln!("cells      {} Huber cells + {} least-squares fits", j.n_cells(), j.n_pairs());
+    match &p.search {
+        crate::search::Search::Product => {
+            outln!("cells      {} Huber cells + {} least-squares fits", j.n_cells(), j.n_pairs())
+        }
+        crate::search::Search::Coordinate(c) => outln!(
+            "search     coordinate (grid.search): one input's orders at a time, {} structures ({} cells) per cycle \
+             over the inputs, of the product's {}",
+            c.cycle(),
+            c.cycle() * j.ks.len(),
+            p.plan.pairs.len()
+        ),
+    }
+    let t = crate::search::estimate_time(&p.plan, &p.search, &p.context(), 0)?;
+    outln!(
+        "time       about {} on all cores{} (a model: {} swept at every k in {:.2} s on one thread, scaled by size)",
+        duration(t.seconds),
+        match p.search {
+            crate::search::Search::Product => String::new(),
+            crate::search::Search::Coordinate(_) => " per cycle over the inputs".to_string(),
+        },
+        t.sample.label(),
+        t.sample_seconds
+    );
     outln!("start      {}", j.job.start.as_str());
     outln!("ranking    by the {} (`{}`)", p.ranking().describe(), p.ranking().column());
     outln!("output     {}", j.output().display());
@@ -270,6 +293,15 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
         print_layout(&p.plan, n);
     }
     Ok(0)
+}
+
+/// Seconds as a person reads them: seconds, minutes or hours.
+fn duration(seconds: f64) -> String {
+    match seconds {
+        s if s < 90.0 => format!("{s:.0} s"),
+        s if s < 5400.0 => format!("{:.0} min", s / 60.0),
+        s => format!("{:.1} h", s / 3600.0),
+    }
 }
 
 /// `oesweep run` ([`engine::run`]).
@@ -303,7 +335,16 @@ fn run_job(a: &RunArgs) -> Result<u8> {
             eprintln!("warning: {w}");
         }
         printed.borrow_mut().extend(r.warnings.iter().cloned());
-        if r.cells + r.ls > 0 && !a.quiet {
+        if r.cells + r.ls > 0 && !a.quiet && r.plan_cells == 0 {
+            // A coordinate search: its plan grows round by round.
+            eprintln!(
+                "resuming from {} ({} parts): {} cells and {} least-squares fits already done",
+                r.folder.display(),
+                r.parts,
+                r.cells,
+                r.ls,
+            );
+        } else if r.cells + r.ls > 0 && !a.quiet {
             eprintln!(
                 "resuming from {} ({} parts): {} of {} cells and {} of {} least-squares fits already done",
                 r.folder.display(),
@@ -362,6 +403,9 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         }
         RunEnd::Merged { ref selection, .. } => {
             outln!("{}: {cells} cells ({failed} failed) + {pairs} least-squares fits", o.label);
+            if let Some(r) = &o.search {
+                outln!("{}", r.describe());
+            }
             if o.resumed_rows > 0 {
                 outln!(
                     "{} cells and {} least-squares fits resumed from the checkpoint, {} cells computed in this run",

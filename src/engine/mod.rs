@@ -24,7 +24,9 @@ use crate::plan::Plan;
 use crate::profile::{Phase, Profile, ProfileReport, Span};
 use crate::progress::Progress;
 use crate::reduce::{self, Selection};
+use crate::search::Search;
 use crate::shard::{self, Missing, Shard};
+pub use write::lead_structure;
 use write::write_results;
 
 use crate::spectral::{self, SpectralEstimate};
@@ -58,6 +60,8 @@ pub struct Prepared {
     /// Seconds the spectral estimate took (0 without `band_hz`).
     pub spectrum_seconds: f64,
     pub plan: Plan,
+    /// The product of `plan`, or the coordinate search in it ([`crate::search`]).
+    pub search: Search,
 }
 
 impl Prepared {
@@ -112,7 +116,8 @@ fn prepare_job(job: job::ValidJob) -> Result<Prepared> {
     };
     let spectrum_seconds = if spectral.is_some() { since.elapsed().as_secs_f64() } else { 0.0 };
     let plan = Plan::from_job(&job);
-    Ok(Prepared { job, inputs, spectral, spectrum_seconds, plan })
+    let search = Search::of_job(&job, &plan);
+    Ok(Prepared { job, inputs, spectral, spectrum_seconds, plan, search })
 }
 
 /// How to run a job.
@@ -250,6 +255,8 @@ pub struct RunOutcome {
     pub cleanup: Option<Error>,
     /// Where the work went, when [`RunOptions::profile`] asked.
     pub profile: Option<ProfileReport>,
+    /// The coordinate search's rounds (None: the product).
+    pub search: Option<crate::search::Rounds>,
     pub end: RunEnd,
 }
 
@@ -303,6 +310,7 @@ fn run_loaded(
     let out = p.job.output().to_path_buf();
     let (plan, label) = match opts.shard {
         Some(s) => {
+            p.search.check_shardable(&format!("--shard {s}"))?;
             shard::check_count(s.count, &p.plan).map_err(|m| Error::Invalid(format!("--shard {s}: {m}")))?;
             (shard::plan_of(&p.plan, s).0, format!("{} shard {s}", p.job.job.name))
         }
@@ -324,7 +332,11 @@ fn run_loaded(
         (false, None) => checkpoint::inspect_all(&out, &manifest, &plan)?,
     };
     checkpoint::open(&out, opts.shard, &manifest, &p.job, opts.force)?;
-    let (pairs, cells) = (plan.pairs.len(), plan.n_cells());
+    // A coordinate search learns its cells round by round: counted from none.
+    let (pairs, cells) = match p.search {
+        Search::Product => (plan.pairs.len(), plan.n_cells()),
+        Search::Coordinate(_) => (0, 0),
+    };
     let resumed_huber = existing.huber_rows();
     let resumed_rows = existing.rows.len();
     on_resume(&Resumed {
@@ -351,6 +363,7 @@ fn run_loaded(
         w.done.store(resumed_huber, Ordering::Relaxed);
     }
     let ctx = sweep::Context { profile: profile.clone(), ..p.context() };
+    let mut searched = None;
     let outcome = {
         let never = AtomicBool::new(false);
         let stop: &AtomicBool = opts.watch.as_ref().map_or(&never, |w| &w.stop);
@@ -372,12 +385,31 @@ fn run_loaded(
             prof.serial("setup", setup.elapsed().as_secs_f64());
         }
         let _span = Span::start(profile.as_deref(), Phase::Sweep);
-        sweep::run(&plan, &ctx, opts.threads, &progress, control)
+        match &p.search {
+            Search::Product => sweep::run(&plan, &ctx, opts.threads, &progress, control),
+            Search::Coordinate(c) => {
+                let lead = |rows: &[CellRow]| write::lead_structure(&p.job, rows);
+                let grow = |n: usize| {
+                    if let Some(w) = &opts.watch {
+                        w.total.fetch_add(n, Ordering::Relaxed);
+                    }
+                };
+                let guide = crate::search::Guide { lead: &lead, grow: &grow };
+                crate::search::coordinate(c, &plan, &ctx, opts.threads, &progress, control, guide).map(|(o, r)| {
+                    searched = Some(r);
+                    o
+                })
+            }
+        }
     };
     progress.finish();
     let saved = writer.finish();
     // Workers refused: no cell was computed, a rerun starts where this one would have.
     let outcome = outcome?;
+    let (cells, pairs) = match &searched {
+        Some(r) => (r.structures * plan.ks.len(), r.structures),
+        None => (cells, pairs),
+    };
     let mut result = RunOutcome {
         label,
         out: out.clone(),
@@ -394,6 +426,7 @@ fn run_loaded(
         unsaved: saved.error.map(|e| (saved.unsaved, e)),
         cleanup: None,
         profile: None,
+        search: searched,
         end: RunEnd::Interrupted,
     };
     result.profile = profile.as_ref().map(|p| p.report());
@@ -503,6 +536,7 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
     let merged = export::RESULT_FILES.iter().all(|f| out.join(f).is_file());
     if !merged || out.join(checkpoint::PARTS_DIR).exists() {
         let g = checkpoint::gather(out)?;
+        Search::of_job(&g.job, &g.plan).check_shardable("merge")?;
         result.name = g.job.job.name.clone();
         result.duplicates = g.duplicates;
         result.missing = shard::missing(&g.plan, &g.rows);

@@ -51,13 +51,25 @@ pub(super) fn write_results(
     Ok(selection)
 }
 
+/// The structure of the job's lead pick of `rows` (the step of the coordinate search,
+/// [`crate::search`]): the rules alone, without the covariances and the look beyond the edge.
+pub fn lead_structure(job: &ValidJob, rows: &[CellRow]) -> Option<crate::oe::Structure> {
+    let selection = reduce::select(rows, &reduce_options(job));
+    let pick = selection.picks.get(&selection.rule)?.model.as_ref()?;
+    Some(pick.key.structure())
+}
+
+fn reduce_options(job: &ValidJob) -> ReduceOptions {
+    ReduceOptions {
+        basis: reduce::choose_basis(job.job.validation.is_some(), job.job.band_hz.is_some()),
+        settings: job.job.selection,
+    }
+}
+
 /// The picks of `rows` with their warnings, the covariances of M1 and M2 and the bootstrap
 /// the job asks for, on the current rayon pool.
 fn picks(job: &ValidJob, rows: &[CellRow], inputs: Option<&Inputs>) -> Selection {
-    let sel_opts = ReduceOptions {
-        basis: reduce::choose_basis(job.job.validation.is_some(), job.job.band_hz.is_some()),
-        settings: job.job.selection,
-    };
+    let sel_opts = reduce_options(job);
     let mut selection = reduce::select(rows, &sel_opts);
     selection.offset = Some(job.job.offset);
     if job.m == 1 {

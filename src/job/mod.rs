@@ -236,6 +236,28 @@ pub struct Grid {
     /// top-level `delay`, itself 1 by default).
     #[serde(default)]
     pub delay: Option<Ranges>,
+    /// How several inputs' structures are searched ([`crate::search`]): written only when not
+    /// the default, so a job of today writes the job.json it always did.
+    #[serde(default, skip_serializing_if = "SearchMode::is_auto")]
+    pub search: SearchMode,
+}
+
+/// `grid.search`: the full product of several inputs' grids, the coordinate search, or
+/// (`auto`, the default) the product up to [`crate::search::PRODUCT_LIMIT`] structures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum SearchMode {
+    #[default]
+    Auto,
+    Product,
+    Coordinate,
+}
+
+crate::names::names!(SearchMode { Auto = "auto", Product = "product", Coordinate = "coordinate" });
+
+impl SearchMode {
+    fn is_auto(&self) -> bool {
+        *self == SearchMode::Auto
+    }
 }
 
 /// Where each Huber fit starts.

@@ -1,0 +1,154 @@
+//! The coordinate search of several inputs (METHOD.md 20, `src/search.rs`): on a three-input
+//! record it reaches the full product's lead pick (the true orders) with a fraction of its
+//! fits; a search stopped after any of its rows and resumed gives the table of a run that was
+//! never stopped, on another thread count; shards and merge refuse it by name.
+
+mod common;
+
+use common::*;
+use oesweep::engine::{self, Prepared, RunOptions};
+use oesweep::oe::{self, Orders, Structure};
+use oesweep::progress::Progress;
+use oesweep::search::{self, Search};
+use oesweep::sweep::{self, Control};
+use oesweep::table::CellRow;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
+
+/// Per input (b, f, delay).
+fn system() -> Vec<(Vec<f64>, Vec<f64>, usize)> {
+    vec![(vec![1.0, 0.5], vec![-1.5, 0.7], 1), (vec![0.8], vec![-0.9], 2), (vec![0.6, 0.5], vec![-0.5], 0)]
+}
+
+/// A CSV of the three inputs and their summed responses with low noise and a few spikes.
+fn write_record(path: &Path, n: usize, seed: u64) {
+    let us: Vec<Vec<f64>> = (0..3).map(|i| binary_input(n, 4 + 3 * i, 1.0, seed * 10 + i as u64)).collect();
+    let mut y = vec![0.0; n];
+    for ((b, f, d), u) in system().iter().zip(&us) {
+        for (t, v) in oe::simulate_vec(b, f, *d, u).into_iter().enumerate() {
+            y[t] += v;
+        }
+    }
+    let mut rng = Lcg(seed + 100);
+    let lines: Vec<String> = (0..n)
+        .map(|t| {
+            let e = 0.01 * rng.normal() + if t % 97 == 13 { 1.0 } else { 0.0 };
+            format!("{},{},{},{}", us[0][t], us[1][t], us[2][t], y[t] + e)
+        })
+        .collect();
+    std::fs::write(path, format!("u1,u2,u3,y\n{}\n", lines.join("\n"))).unwrap();
+}
+
+/// nB, nF in 1..2 per input at the true delays (a product of 64 structures), two k.
+fn job(dir: &Path, search: &str) -> PathBuf {
+    write_record(&dir.join("est.csv"), 1500, 1);
+    write_record(&dir.join("val.csv"), 1500, 2);
+    let job = serde_json::json!({
+        "name": "search",
+        "data": {"path": "est.csv", "u": ["u1", "u2", "u3"], "y": "y", "ts": 1},
+        "validation": {"path": "val.csv"},
+        "delay": [1, 2, 0],
+        "grid": {"nb": [1, 2], "nf": [1, 2], "k": [0.5, 1.5], "search": search},
+        "offset": "none",
+        "output": "out"
+    });
+    let path = dir.join("job.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&job).unwrap()).unwrap();
+    path
+}
+
+fn truth() -> Structure {
+    let o: Vec<Orders> = system().iter().map(|(b, f, d)| Orders { nb: b.len(), nf: f.len(), delay: *d }).collect();
+    Structure::new(&o).unwrap()
+}
+
+/// The search's rows (wall times zeroed) and the rows it reported as they finished.
+fn search_rows(p: &Prepared, threads: usize, done: Vec<CellRow>) -> (Vec<CellRow>, Vec<CellRow>, search::Rounds) {
+    let Search::Coordinate(c) = &p.search else { panic!("a coordinate search") };
+    let reported = Mutex::new(Vec::new());
+    let on_row = |r: &CellRow| reported.lock().unwrap().push(r.clone());
+    let control = Control { done, on_row: &on_row, ..Control::none() };
+    let lead = |rows: &[CellRow]| engine::lead_structure(&p.job, rows);
+    let guide = search::Guide { lead: &lead, grow: &|_| () };
+    let (out, rounds) = search::coordinate(c, &p.plan, &p.context(), threads, &Progress::new(0, true), control, guide)
+        .expect("the search runs");
+    assert!(!out.interrupted);
+    (zero_seconds(out.rows), reported.into_inner().unwrap(), rounds)
+}
+
+fn zero_seconds(mut rows: Vec<CellRow>) -> Vec<CellRow> {
+    for r in &mut rows {
+        r.fit.seconds = 0.0;
+    }
+    rows
+}
+
+#[test]
+fn the_search_reaches_the_products_lead_with_a_fraction_of_its_fits() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = engine::prepare(&job(dir.path(), "coordinate")).unwrap();
+    let (rows, _, rounds) = search_rows(&p, 2, Vec::new());
+    let full = engine::prepare(&job(dir.path(), "product")).unwrap();
+    assert_eq!(full.search, Search::Product);
+    let product = sweep::run(&full.plan, &full.context(), 2, &Progress::new(0, true), Control::none()).unwrap();
+    let lead = engine::lead_structure(&p.job, &product.rows).expect("the product has a lead pick");
+    assert_eq!(lead, truth(), "the product's lead pick");
+    assert_eq!(engine::lead_structure(&p.job, &rows), Some(lead), "the search's lead pick: rounds {:?}", rounds);
+    // Its last round went through the lead, and each round swept one input's 4 orders.
+    assert_eq!(rounds.rounds.last().unwrap().2, lead);
+    let structures = rows.iter().filter(|r| !r.is_huber()).count();
+    assert_eq!(structures, rounds.structures);
+    assert!(
+        structures * 2 <= full.plan.pairs.len(),
+        "{structures} structures of the product's {}",
+        full.plan.pairs.len()
+    );
+    assert_eq!(rows.len(), structures * 3, "one least-squares and two Huber rows per structure");
+}
+
+#[test]
+fn a_search_stopped_after_any_of_its_rows_resumes_to_the_same_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = engine::prepare(&job(dir.path(), "coordinate")).unwrap();
+    let (whole, reported, _) = search_rows(&p, 1, Vec::new());
+    // What a checkpoint holds after a stop: some of the rows the walks reported (the nested
+    // check's refits never reach it): every third, which cuts across rounds and pairs.
+    let saved: Vec<CellRow> = reported.iter().step_by(3).cloned().collect();
+    assert!(saved.len() > 4 && saved.len() < reported.len());
+    let (resumed, _, _) = search_rows(&p, 2, saved);
+    assert_eq!(resumed.len(), whole.len());
+    for (a, b) in whole.iter().zip(&resumed) {
+        assert_eq!(a.key, b.key);
+        assert_eq!(a.fit.criterion.map(f64::to_bits), b.fit.criterion.map(f64::to_bits), "{:?}", a.key);
+        assert_eq!(a.fit.b, b.fit.b, "{:?}", a.key);
+    }
+}
+
+#[test]
+fn shards_and_merge_refuse_a_coordinate_search_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = job(dir.path(), "coordinate");
+    let opts = RunOptions { quiet: true, shard: Some("1/2".parse().unwrap()), ..RunOptions::default() };
+    let err = engine::run(&path, &opts, &|_| ()).unwrap_err();
+    assert!(err.is_bad_input(), "{err}");
+    assert!(err.to_string().contains("--shard 1/2: the job's coordinate search"), "{err}");
+    // A run stopped before its first cell leaves a checkpoint that merge refuses...
+    let watch = engine::Watch {
+        stop: Arc::new(AtomicBool::new(true)),
+        done: Default::default(),
+        total: Default::default(),
+        finished: None,
+    };
+    let opts = RunOptions { quiet: true, watch: Some(watch), ..RunOptions::default() };
+    let o = engine::run(&path, &opts, &|_| ()).unwrap();
+    assert!(matches!(o.end, engine::RunEnd::Interrupted));
+    let err = engine::merge(&dir.path().join("out"), false, false).unwrap_err();
+    assert!(err.is_bad_input(), "{err}");
+    assert!(err.to_string().contains("merge: the job's coordinate search"), "{err}");
+    // ... and the run resumes it to the results of the rows it fitted.
+    let opts = RunOptions { quiet: true, ..RunOptions::default() };
+    let o = engine::run(&path, &opts, &|_| ()).unwrap();
+    assert!(matches!(o.end, engine::RunEnd::Merged { .. }));
+    assert!(o.cells > 0 && o.cells < 64 * 2, "{} cells", o.cells);
+}
