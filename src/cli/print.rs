@@ -100,7 +100,7 @@ pub(super) fn print_pick_bootstraps(selection: &reduce::Selection) {
         let rules = p.rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
         let k = p.k.map_or("least squares".to_string(), |k| format!("k = {}", crate::text::k(k)));
         outln!();
-        outln!("OE({},{}) delay {} {k} (picked by {rules})", p.nb, p.nf, p.delay);
+        outln!("{} {k} (picked by {rules})", p.label());
         let stds: Vec<f64> = p.sandwich_std.iter().map(|s| s.unwrap_or(f64::NAN)).collect();
         print_intervals(&p.parameters, &p.values, &stds, &p.intervals, Some(p.ts));
     }
