@@ -44,7 +44,7 @@ pub struct Cleaned {
 /// its own p + 1 lags in the predictor).
 pub fn clean(u: &[f64], y: &[f64], opts: &CleanOptions) -> Cleaned {
     let n = y.len();
-    assert!(n > 0 && u.len() % n == 0 && !u.is_empty(), "{} input values for {n} output samples", u.len());
+    assert!(n > 0 && u.len().is_multiple_of(n) && !u.is_empty(), "{} input values for {n} output samples", u.len());
     let p = opts.order.min(n / 20).max(1);
     let d = columns(p, u.len() / n);
     let mut replaced = 0;
