@@ -296,10 +296,6 @@ fn fit_reads_lists_of_inputs_and_orders_and_names_each_bad_one() {
         (&["--u", "u,y", "--nb", "1", "--nf", "1"], "d.csv: the input and the output column are both 'y'"),
         (&["--u", "u,c", "--nb", "1", "--nf", "1"], "d.csv: input column 'c' is constant (value 4)"),
         (&["--u", "u,v,w", "--nb", "1", "--nf", "1"], "d.csv: input columns 'u' and 'w' are perfectly collinear"),
-        (
-            &["--u", "u,v", "--nb", "1", "--nf", "1", "--ts", "1", "--band", "0.01,0.2"],
-            "--band compares one input's response",
-        ),
     ];
     for (extra, want) in cases {
         let (code, err) = fit(extra);
@@ -372,16 +368,7 @@ fn a_job_of_several_inputs_runs_and_what_is_one_input_s_refuses_by_name() {
         assert_eq!(code, Some(2), "{args:?}: {err}");
         assert!(err.starts_with(want) && err.lines().count() == 1, "{args:?}: {err}");
     }
-    // So is a band fit, before anything is written.
-    let band = serde_json::json!({
-        "name": "band", "data": {"path": "d.csv", "u": ["u", "v"], "ts": 1}, "band_hz": [0.0, 0.2],
-        "grid": {"nb": [1, 1], "nf": [1, 1], "k": [1.0]}, "delay": [1, 0], "output": "out_band"
-    });
-    let file = write_job(&root, &band);
-    let (code, err) = oesweep(&root, &["run", file.to_str().unwrap(), "--quiet"]);
-    assert_eq!(code, Some(2), "{err}");
-    assert!(err.contains("2 inputs: the band fit (`band_hz`) is one input's so far"), "{err}");
-    assert!(!root.join("out_band").exists());
+    // A band fit runs: tests/several_inputs_band.rs.
 }
 
 /// (nb_1, nb_2) of every row of a two-input table, as polars reads the file.

@@ -234,9 +234,10 @@ pub struct SpectrumArgs {
     /// The record (delimited text, Parquet or MATLAB level-5 .mat).
     #[arg(long)]
     pub data: PathBuf,
-    /// Input column: a name, or a 1-based position.
-    #[arg(long, default_value = "u")]
-    pub u: String,
+    /// Input column: a name, or a 1-based position; several inputs: a comma-separated list of
+    /// them (each input's response from the inputs' cross-spectra, METHOD.md 19).
+    #[arg(long, value_delimiter = ',', default_value = "u", num_args = 1)]
+    pub u: Vec<String>,
     /// Output column: a name, or a 1-based position.
     #[arg(long, default_value = "y")]
     pub y: String,
@@ -249,17 +250,19 @@ pub struct SpectrumArgs {
     /// robust: the output's spikes cleaned out before Welch's estimate; welch: as it is.
     #[arg(long, value_enum, default_value = "robust")]
     pub method: crate::spectral::SpectrumMethod,
-    /// Print one JSON object (freq_hz, re, im, coherence, mag_lower, mag_upper) instead of a table.
+    /// Print one JSON object (freq_hz, re, im, coherence, mag_lower, mag_upper; several inputs:
+    /// re, im, mag_lower, mag_upper one list per input) instead of a table.
     #[arg(long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
 pub struct SimulateArgs {
-    /// System file: {"b": [...], "f": [...], "delay": 1}.
+    /// System file: {"b": [...], "f": [...], "delay": 1}; several inputs:
+    /// {"inputs": [{"b": [...], "f": [...], "delay": 1}, ...]}.
     #[arg(long)]
     pub system: PathBuf,
-    /// Output CSV (columns u, y, y0).
+    /// Output CSV (columns u, y, y0; several inputs: u1, .., um, y, y0).
     #[arg(long)]
     pub out: PathBuf,
     /// Number of samples.

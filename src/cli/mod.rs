@@ -154,7 +154,7 @@ fn run_export(a: &args::ExportArgs) -> Result<u8> {
 fn run_spectrum(a: &args::SpectrumArgs) -> Result<u8> {
     let req = engine::SpectrumRequest {
         data: a.data.clone(),
-        u: ColumnRef::parse(&a.u),
+        u: a.u.iter().map(|c| ColumnRef::parse(c)).collect(),
         y: ColumnRef::parse(&a.y),
         rows: a.rows,
         ts: a.ts,

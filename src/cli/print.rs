@@ -29,6 +29,17 @@ pub(super) fn print_fit_summary(r: &FitReport) {
     outln!("{:<22}{:>18}{:>18}", "fit (estimation)", opt_pct(Some(l.assessment.fit)), opt_pct(Some(h.assessment.fit)));
     outln!("{:<22}{:>18}{:>18}", "fit (validation)", opt_pct(l.assessment.fit_val), opt_pct(h.assessment.fit_val));
     outln!("{:<22}{:>18}{:>18}", "fit (band)", opt_pct(l.assessment.fit_band), opt_pct(h.assessment.fit_band));
+    // Several inputs: each input's band fit (the line above is their mean).
+    let input_band = |a: &crate::estimate::Assessment, i: usize| a.fit_band_inputs.as_ref().map(|v| v[i]);
+    for i in 0..h.assessment.fit_band_inputs.as_ref().map_or(0, Vec::len) {
+        let label = format!("fit (band, input {})", i + 1);
+        outln!(
+            "{:<22}{:>18}{:>18}",
+            label,
+            opt_pct(input_band(&l.assessment, i)),
+            opt_pct(input_band(&h.assessment, i))
+        );
+    }
     outln!("{:<22}{:>18}{:>18}", "iterations", l.iterations, h.iterations);
     outln!("{:<22}{:>18} {:>17}", "termination", l.termination.as_str(), h.termination.as_str());
     outln!("{:<22}{:>18.6}{:>18.6}", "max pole radius", l.assessment.max_pole_radius, h.assessment.max_pole_radius);
@@ -89,7 +100,7 @@ pub(super) fn print_pick_bootstraps(selection: &reduce::Selection) {
         let rules = p.rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
         let k = p.k.map_or("least squares".to_string(), |k| format!("k = {}", crate::text::k(k)));
         outln!();
-        outln!("OE({},{}) delay {} {k} (picked by {rules})", p.nb, p.nf, p.delay);
+        outln!("{} {k} (picked by {rules})", p.label());
         let stds: Vec<f64> = p.sandwich_std.iter().map(|s| s.unwrap_or(f64::NAN)).collect();
         print_intervals(&p.parameters, &p.values, &stds, &p.intervals, Some(p.ts));
     }
@@ -271,7 +282,8 @@ pub(super) fn print_report(report: Option<Result<PathBuf>>) -> Result<()> {
     Ok(())
 }
 
-/// `oesweep spectrum`'s table: per usable bin, |G| in dB with its band, phase, coherence.
+/// `oesweep spectrum`'s table: per usable bin, |G| in dB with its band, phase, coherence
+/// (several inputs: one table per input, the multiple coherence in each).
 pub(super) fn print_spectrum(r: &crate::engine::SpectrumReport) {
     outln!(
         "{} ({} samples): {} estimate, {} segments of {}{}",
@@ -282,25 +294,31 @@ pub(super) fn print_spectrum(r: &crate::engine::SpectrumReport) {
         r.segment,
         if r.replaced > 0 { format!(", {} output samples cleaned", r.replaced) } else { String::new() }
     );
-    outln!(
-        "{:>14} {:>12} {:>12} {:>12} {:>10} {:>10}",
-        "freq_hz",
-        "|G| dB",
-        "lower dB",
-        "upper dB",
-        "phase deg",
-        "coherence"
-    );
     let db = |v: f64| if v > 0.0 { 20.0 * v.log10() } else { f64::NEG_INFINITY };
-    for k in 0..r.freq_hz.len() {
+    for i in 0..r.re.len() {
+        if r.re.len() > 1 {
+            outln!("input {} ({}):", i + 1, r.u.get(i).map_or("", String::as_str));
+        }
         outln!(
-            "{:>14.6} {:>12.3} {:>12.3} {:>12.3} {:>10.2} {:>10.4}",
-            r.freq_hz[k],
-            db(r.re[k].hypot(r.im[k])),
-            db(r.mag_lower[k]),
-            db(r.mag_upper[k]),
-            r.im[k].atan2(r.re[k]).to_degrees(),
-            r.coherence[k]
+            "{:>14} {:>12} {:>12} {:>12} {:>10} {:>10}",
+            "freq_hz",
+            "|G| dB",
+            "lower dB",
+            "upper dB",
+            "phase deg",
+            "coherence"
         );
+        let (re, im) = (&r.re[i], &r.im[i]);
+        for k in 0..r.freq_hz.len() {
+            outln!(
+                "{:>14.6} {:>12.3} {:>12.3} {:>12.3} {:>10.2} {:>10.4}",
+                r.freq_hz[k],
+                db(re[k].hypot(im[k])),
+                db(r.mag_lower[i][k]),
+                db(r.mag_upper[i][k]),
+                im[k].atan2(re[k]).to_degrees(),
+                r.coherence[k]
+            );
+        }
     }
 }

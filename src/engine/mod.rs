@@ -43,20 +43,20 @@ mod beyond;
 mod export_model;
 pub mod per_input;
 mod single;
+mod spectrum;
 mod uncertainty;
 mod write;
 
 pub use export_model::{PickSpec, export_model};
-pub use single::{
-    FitReport, FitRequest, SpectrumReport, SpectrumRequest, fit, fit_arrays, simulate, spectrum, spectrum_arrays,
-};
+pub use single::{FitReport, FitRequest, fit, fit_arrays, simulate};
+pub use spectrum::{SpectrumReport, SpectrumRequest, spectrum, spectrum_arrays};
 
 /// A job, its data and everything derived from them before estimation starts.
 pub struct Prepared {
     pub job: ValidJob,
     pub inputs: Inputs,
-    /// The spectral estimate of the estimation record and the bins of `band_hz`.
-    pub spectral: Option<(SpectralEstimate, Vec<usize>)>,
+    /// The spectral estimate of the estimation record (one per input) and the bins of `band_hz`.
+    pub spectral: Option<(Vec<SpectralEstimate>, Vec<usize>)>,
     /// Seconds the spectral estimate took (0 without `band_hz`).
     pub spectrum_seconds: f64,
     pub plan: Plan,
@@ -70,7 +70,7 @@ impl Prepared {
         Context {
             est: &self.inputs.est,
             val: self.inputs.val.as_ref(),
-            band: self.spectral.as_ref().map(|(s, b)| (s, &b[..])),
+            band: self.spectral.as_ref().map(|(s, b)| (&s[..], &b[..])),
             solver: self.job.job.solver.clone(),
             levels: self.inputs.levels.clone(),
             initial_state: self.job.job.initial_state,
@@ -93,17 +93,14 @@ pub fn prepare(path: &Path) -> Result<Prepared> {
 fn prepare_job(job: job::ValidJob) -> Result<Prepared> {
     let path = &job.file;
     let inputs = job::load_inputs(&job)?;
-    if job.job.band_hz.is_some() {
-        // The band fit compares one input's response with a one-input spectral estimate.
-        job.single_input_only("the band fit (`band_hz`)")?;
-    }
     let since = std::time::Instant::now();
     let spectral = match job.job.band_hz {
         Some([lo, hi]) => {
-            let s =
-                spectral::estimate_within(&inputs.est.u, &inputs.est.y, &inputs.est.seams, job.ts(), job.job.spectrum)
-                    .map_err(|e| Error::data(&job.job.data.first().path, e.to_string()))?;
-            let bins = s.band(lo, hi);
+            let est = &inputs.est;
+            let s = spectral::estimate_inputs(&est.u, job.m, &est.y, &est.seams, job.ts(), job.job.spectrum)
+                .map_err(|e| Error::data(&job.job.data.first().path, e.to_string()))?;
+            // Every input's estimate has the same usable bins.
+            let bins = s[0].band(lo, hi);
             if bins.is_empty() {
                 return Err(Error::input(
                     path,

@@ -1,5 +1,5 @@
-//! The one-model operations: [`fit`] one cell (`oesweep fit`), the nonparametric
-//! [`spectrum`] of a record, and [`simulate`] example data.
+//! The one-model operations: [`fit`] one cell (`oesweep fit`) and [`simulate`] example data
+//! (the nonparametric spectrum of a record: [`super::spectrum`]).
 
 use crate::data::{self, ColumnRef, ReadOptions};
 use crate::error::{Error, Result};
@@ -229,18 +229,11 @@ fn fit_records(
     let delay0 = largest.inputs().iter().map(|o| o.delay).min().unwrap_or(0);
     let job::Inputs { est, val, levels, warnings, pole_test } =
         job::inputs_of_records(est, val, req.offset, largest, delay0)?;
-    if largest.m() > 1 && req.band.is_some() {
-        return Err(Error::Invalid(
-            "--band compares one input's response with a spectral estimate of one input: it is not \
-             computed for several inputs (leave --band out)"
-                .into(),
-        ));
-    }
     let first = largest.inputs()[0];
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
-            let s = spectral::estimate_within(&est.u, &est.y, &est.seams, ts, req.spectrum)?;
-            let bins = s.band(lo, hi);
+            let s = spectral::estimate_inputs(&est.u, largest.m(), &est.y, &est.seams, ts, req.spectrum)?;
+            let bins = s[0].band(lo, hi);
             Some((s, bins))
         }
         _ => None,
@@ -248,7 +241,7 @@ fn fit_records(
     let judge = Judge {
         validation: val.as_ref().map(|v| (&v.u[..], &v.y[..])),
         validation_seams: val.as_ref().map_or(&[][..], |v| &v.seams[..]),
-        band: spec.as_ref().map(|(s, bins)| (s, &bins[..])),
+        band: spec.as_ref().map(|(s, bins)| (&s[..], &bins[..])),
         initial_state: req.initial_state,
         criterion_only: false,
     };
@@ -321,79 +314,12 @@ fn fit_records(
     })
 }
 
-/// A nonparametric frequency response, `oesweep spectrum`.
-#[derive(Clone, Debug)]
-pub struct SpectrumRequest {
-    pub data: PathBuf,
-    pub u: ColumnRef,
-    pub y: ColumnRef,
-    pub rows: Option<[usize; 2]>,
-    pub ts: f64,
-    pub method: spectral::SpectrumMethod,
-}
-
-/// Report of [`spectrum`] (`spectrum --json` prints it): per usable bin (the input has power
-/// there) the frequency, `G_spec` and the coherence, and an approximate 95 % band of `|G_spec|`
-/// ([`SpectralEstimate::magnitude_band`]).
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct SpectrumReport {
-    pub data: PathBuf,
-    pub n: usize,
-    pub method: spectral::SpectrumMethod,
-    /// Output samples the robust method replaced.
-    pub replaced: usize,
-    pub segment: usize,
-    pub segments: usize,
-    pub freq_hz: Vec<f64>,
-    pub re: Vec<f64>,
-    pub im: Vec<f64>,
-    pub coherence: Vec<f64>,
-    pub mag_lower: Vec<f64>,
-    pub mag_upper: Vec<f64>,
-}
-
-/// The spectral estimate of one record (see [`SpectrumRequest`]).
-pub fn spectrum(req: &SpectrumRequest) -> Result<SpectrumReport> {
-    job::check_sampling_period(req.ts).map_err(|m| Error::Invalid(format!("--ts {m}")))?;
-    if let Some(r) = req.rows {
-        data::check_rows(r).map_err(|m| Error::Invalid(format!("--rows {m}")))?;
-    }
-    let opts = ReadOptions { rows: req.rows, ..ReadOptions::default() };
-    let rec = data::read_record_with(&req.data, &req.u, &req.y, &opts)?;
-    spectrum_of(&rec, req.ts, req.method)
-}
-
-/// [`spectrum`] of a record in memory (the Python package's arrays), `ts` checked as `ts`.
-pub fn spectrum_arrays(rec: &data::Record, ts: f64, method: spectral::SpectrumMethod) -> Result<SpectrumReport> {
-    job::check_sampling_period(ts).map_err(|m| Error::Invalid(format!("ts {m}")))?;
-    spectrum_of(rec, ts, method)
-}
-
-fn spectrum_of(rec: &data::Record, ts: f64, method: spectral::SpectrumMethod) -> Result<SpectrumReport> {
-    let est = spectral::estimate(&rec.u, &rec.y, ts, method).map_err(|e| Error::data(&rec.path, e.to_string()))?;
-    let bins: Vec<usize> = (0..est.freq_hz.len()).filter(|&k| est.re[k].is_finite()).collect();
-    let bands: Vec<(f64, f64)> = bins.iter().map(|&k| est.magnitude_band(k).unwrap_or((f64::NAN, f64::NAN))).collect();
-    Ok(SpectrumReport {
-        data: rec.path.clone(),
-        n: rec.len(),
-        method,
-        replaced: est.replaced,
-        segment: est.segment,
-        segments: est.segments,
-        freq_hz: bins.iter().map(|&k| est.freq_hz[k]).collect(),
-        re: bins.iter().map(|&k| est.re[k]).collect(),
-        im: bins.iter().map(|&k| est.im[k]).collect(),
-        coherence: bins.iter().map(|&k| est.coherence[k]).collect(),
-        mag_lower: bands.iter().map(|b| b.0).collect(),
-        mag_upper: bands.iter().map(|b| b.1).collect(),
-    })
-}
-
 /// Example data, `oesweep simulate`: the system file's OE model driven by a PRBS, with noise
-/// and spikes as `opts` say, written to `out` as CSV (`u,y,y0`). Returns the samples written.
+/// and spikes as `opts` say, written to `out` as CSV (`u,y,y0`; a system of several inputs:
+/// `u1,..,um,y,y0`, [`simulate::generate_inputs`]). Returns the samples written.
 pub fn simulate(system: &Path, out: &Path, opts: &simulate::SimOptions) -> Result<usize> {
-    let sys = simulate::read_system(system)?;
-    let rec = simulate::generate(&sys, opts)?;
+    let systems = simulate::read_systems(system)?;
+    let rec = simulate::generate_inputs(&systems, opts)?;
     simulate::write_csv(out, &rec)?;
     Ok(opts.n)
 }

@@ -11,7 +11,7 @@ use crate::estimate::least_squares::BOUNDARY;
 use crate::estimate::{self, Problem};
 use crate::job::{Inputs, Uncertainty};
 use crate::reduce::{PickBootstrap, Rule, Selection};
-use crate::table::CellRow;
+use crate::table::{CellRow, PerInput};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 
@@ -142,7 +142,8 @@ pub fn integrating_doubt(sel: &Selection, inputs: &Inputs) -> Option<String> {
 }
 
 /// The bootstrap of every watched model's whole estimation on the job's estimation record
-/// (METHOD.md 17.3), replicates in parallel on the current rayon pool.
+/// (METHOD.md 17.3), replicates in parallel on the current rayon pool. Several inputs: the
+/// parameters' intervals (theta's order, every input's b_i, f_i), no response intervals.
 pub fn bootstrap_picks(
     sel: &Selection,
     models: &PickModels,
@@ -157,19 +158,18 @@ pub fn bootstrap_picks(
         .into_iter()
         .map(|(rules, row)| {
             let prob = problem(row, inputs);
-            let c = inputs.levels.estimated_c(row.fit.offset);
-            let theta = estimate::theta_of(&row.fit.b, &row.fit.f, c);
+            let theta = theta(row, inputs);
             let sandwich = models.covariance(row, inputs);
             let dim = theta.len();
             let sandwich_std =
                 (0..dim).map(|i| sandwich.as_ref().map(|cov| cov[i * dim + i].max(0.0).sqrt())).collect();
             PickBootstrap {
                 rules,
-                nb: row.key.nb,
-                nf: row.key.nf,
-                delay: row.key.delay,
+                nb: PerInput::of(&row.key, |o| o.nb),
+                nf: PerInput::of(&row.key, |o| o.nf),
+                delay: PerInput::of(&row.key, |o| o.delay),
                 k: row.k,
-                parameters: crate::export::model::parameter_names(prob.one().nb, prob.one().nf, c.is_some()),
+                parameters: crate::export::model::structure_parameter_names(&prob.structure, prob.offset),
                 values: theta.clone(),
                 sandwich_std,
                 ts,

@@ -81,39 +81,22 @@ fn picks(job: &ValidJob, rows: &[CellRow], inputs: Option<&Inputs>) -> Selection
     selection.warnings = inputs.map(|i| i.warnings.clone()).unwrap_or_default();
     selection.warnings.extend(inputs.and_then(|i| uncertainty::integrating_doubt(&selection, i)));
     let bounds = |v: &[usize]| (v[0] as u32, v[v.len() - 1] as u32);
-    let grid = reduce::doubts::GridBounds { nb: bounds(&job.nb), nf: bounds(&job.nf), delay: bounds(&job.delays) };
-    if job.m > 1 {
-        // The look beyond the grid's edge and the picks' bootstrap are one input's so far
-        // (docs/ARCHITECTURE.md, "Several inputs"); the picks' covariances and doubts any m's.
-        let grids: Vec<_> = job
-            .grids
-            .iter()
-            .map(|g| reduce::doubts::GridBounds { nb: bounds(&g.nb), nf: bounds(&g.nf), delay: bounds(&g.delays) })
-            .collect();
-        selection.warnings.extend(reduce::doubts::pick_warnings_per_input(&selection, rows, &grids, &[]));
-        if !job.job.uncertainty.is_local() {
-            selection
-                .warnings
-                .push("the job asks for the bootstrap of the picks: not computed for several inputs yet".into());
-        }
-        if let Some(inputs) = inputs {
-            let models = uncertainty::PickModels::of(&selection, inputs);
-            selection.warnings.extend(uncertainty::pick_doubts(&selection, &models, inputs, false));
-            for pick in [selection.m1.as_mut(), selection.m2.as_mut()].into_iter().flatten() {
-                pick.covariance = models.covariance(&pick.model, inputs);
-            }
-        }
-        return selection;
-    }
+    // Each input's grid (one input: the job's): the edge warnings and the look beyond name
+    // the input on the edge.
+    let grids: Vec<_> = job
+        .grids
+        .iter()
+        .map(|g| reduce::doubts::GridBounds { nb: bounds(&g.nb), nf: bounds(&g.nf), delay: bounds(&g.delays) })
+        .collect();
     let rbic_pick = selection.picks.get(&reduce::Rule::Rbic).and_then(|p| p.model.as_ref());
     let (beyond, models) = rayon::join(
         || match (rbic_pick, inputs) {
-            (Some(pick), Some(inputs)) => beyond::beyond_edges(pick, rows, &grid, inputs, job),
+            (Some(pick), Some(inputs)) => beyond::beyond_edges(pick, rows, &grids, inputs, job),
             _ => Vec::new(),
         },
         || inputs.map(|i| uncertainty::PickModels::of(&selection, i)),
     );
-    selection.warnings.extend(reduce::doubts::pick_warnings(&selection, rows, &grid, &beyond));
+    selection.warnings.extend(reduce::doubts::pick_warnings_per_input(&selection, rows, &grids, &beyond));
     let uncertainty = &job.job.uncertainty;
     if let (Some(inputs), Some(models)) = (inputs, &models)
         && !uncertainty.is_local()

@@ -22,8 +22,9 @@ pub struct Judge<'a> {
     /// The validation record's seams when it is several experiments
     /// ([`crate::data::Record::seams`]; empty: one).
     pub validation_seams: &'a [usize],
-    /// Spectral estimate of the estimation record and the bins of the fit band.
-    pub band: Option<(&'a SpectralEstimate, &'a [usize])>,
+    /// Spectral estimate of the estimation record, one per input
+    /// ([`crate::spectral::estimate_inputs`]), and the bins of the fit band.
+    pub band: Option<(&'a [SpectralEstimate], &'a [usize])>,
     /// The initial state `fit` and `fit_val` are computed with.
     pub initial_state: InitialState,
     /// Fits only for their criterion: a long record's walk on its head, whose every cell is
@@ -130,8 +131,13 @@ pub struct Assessment {
     pub fit: f64,
     /// Fit % on the validation record (None without one).
     pub fit_val: Option<f64>,
-    /// Fit % of the frequency response against the spectral estimate in the band.
+    /// Fit % of the frequency response against the spectral estimate in the band (several
+    /// inputs: the mean of `fit_band_inputs`, [`crate::spectral::combined_band_fit`]).
     pub fit_band: Option<f64>,
+    /// Several inputs: each input's band fit (None for one input, and when an input's is not
+    /// finite, as `fit_band` then).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit_band_inputs: Option<Vec<f64>>,
     /// Fit % of each estimation experiment when the record is several (METHOD.md 16); `fit`
     /// is then the pooled one.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -152,6 +158,7 @@ impl Assessment {
             fit: f64::NAN,
             fit_val: None,
             fit_band: None,
+            fit_band_inputs: None,
             fit_exp: None,
             fit_val_exp: None,
             max_pole_radius,
@@ -180,22 +187,39 @@ fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: 
     judge.judge_output(prob, theta, prob.y, &mut ws.judged, &mut ws.free_response);
     let fit = fit_percent(prob.y, &ws.judged);
     let fit_exp = fit_per_experiment(prob, prob.y, &ws.judged);
-    // The band fit compares one input's response with a one-input spectral estimate.
-    let fit_band = judge.band.filter(|_| prob.m() == 1).and_then(|(est, bins)| {
-        let (b, f, _) = prob.split(theta);
-        crate::spectral::band_fit(est, bins, b, f, prob.one().delay)
-    });
+    let (fit_band, fit_band_inputs) = band_fits(prob, theta, judge);
     drop(judging);
     let _evidence = Span::start(profile.as_deref(), Phase::Evidence);
     Assessment {
         fit,
         fit_val: fit_val.filter(|v| v.is_finite()),
         fit_band: fit_band.filter(|v| v.is_finite()),
+        fit_band_inputs,
         fit_exp,
         fit_val_exp,
         max_pole_radius: prob.max_pole_radius(theta),
         evidence: evidence::evidence(prob, theta, loss, &ws.yhat, &ws.xu, &ws.xy, &mut ws.evidence),
     }
+}
+
+/// The band fit of `theta` (METHOD.md 11) and, for several inputs, each input's: input i's
+/// `B_i/F_i` against its estimate `H_i`.
+fn band_fits(prob: &Problem, theta: &[f64], judge: &Judge) -> (Option<f64>, Option<Vec<f64>>) {
+    let Some((ests, bins)) = judge.band else { return (None, None) };
+    assert_eq!(ests.len(), prob.m(), "one spectral estimate per input");
+    if prob.m() == 1 {
+        let (b, f, _) = prob.split(theta);
+        return (crate::spectral::band_fit(&ests[0], bins, b, f, prob.one().delay), None);
+    }
+    let per_input: Vec<Option<f64>> = (0..prob.m())
+        .map(|i| {
+            let (b, f) = prob.input_parts(theta, i);
+            crate::spectral::band_fit(&ests[i], bins, b, f, prob.structure.inputs()[i].delay)
+        })
+        .collect();
+    // Every input's or none (a row's list never holds a gap): the combined fit needs them all.
+    let finite: Option<Vec<f64>> = per_input.iter().map(|v| v.filter(|v| v.is_finite())).collect();
+    (crate::spectral::combined_band_fit(&per_input), finite)
 }
 
 /// The least-squares (L2) fit of an order pair and the scale sigma it provides.

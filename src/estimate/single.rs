@@ -136,6 +136,7 @@ mod tests {
                 fit: 90.0,
                 fit_val: None,
                 fit_band: None,
+                fit_band_inputs: None,
                 fit_exp: None,
                 fit_val_exp: None,
                 max_pole_radius: radius,

@@ -15,6 +15,7 @@
 use super::rules::INDEPENDENCE_LEVEL;
 use super::{FitBasis, Rule, Selection, takes_part};
 use crate::estimate::least_squares::BOUNDARY;
+use crate::oe::Structure;
 use crate::table::{CellRow, FitKind, RowKey};
 use std::collections::BTreeMap;
 
@@ -59,9 +60,7 @@ impl Grid<'_> {
 /// (`engine::beyond`), with its RBIC.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Beyond {
-    pub nb: u32,
-    pub nf: u32,
-    pub delay: u32,
+    pub structure: Structure,
     pub rbic: f64,
 }
 
@@ -78,15 +77,11 @@ enum Evidence {
 /// model just beyond it has a lower RBIC still (or nothing beyond it was fitted), or no model
 /// off the edges is independent of the input.
 fn wants_more(sel: &Selection, rows: &[CellRow], grid: Grid, beyond: &[Beyond]) -> Evidence {
-    let name = |nb: u32, nf: u32, delay: u32| format!("OE({nb},{nf}) delay {delay}");
     let rbic = sel.picks.get(&Rule::Rbic).and_then(|p| p.model.as_ref().map(|m| (m, p.value)));
     if let Some((m, Some(v))) = rbic.filter(|(m, _)| !grid.edges(&m.key).is_empty()) {
         let pick = m.key.label();
         let listed = |bs: &[&Beyond]| {
-            bs.iter()
-                .map(|b| format!("{} ({:+.1})", name(b.nb, b.nf, b.delay), b.rbic - v))
-                .collect::<Vec<_>>()
-                .join(", ")
+            bs.iter().map(|b| format!("{} ({:+.1})", b.structure.label(), b.rbic - v)).collect::<Vec<_>>().join(", ")
         };
         let lower: Vec<&Beyond> = beyond.iter().filter(|b| b.rbic < v).collect();
         return if !lower.is_empty() {
@@ -280,7 +275,10 @@ mod tests {
         assert!(w[0].contains("paper_m1, paper_m2, rbic"), "{}", w[0]);
 
         // Beyond the edge RBIC rises: the edge pick is RBIC's minimum, no widening.
-        let up = [Beyond { nb: 3, nf: 4, delay: 1, rbic: 2.0 }, Beyond { nb: 4, nf: 3, delay: 1, rbic: 0.7 }];
+        let up = [
+            Beyond { structure: Structure::siso(3, 4, 1), rbic: 2.0 },
+            Beyond { structure: Structure::siso(4, 3, 1), rbic: 0.7 },
+        ];
         let w = pick_warnings(&sel, &rows, &grid, &up);
         assert!(w.len() == 1 && !w[0].contains("widen the grid"), "{w:?}");
         assert!(w[0].contains("OE(3,4) delay 1 (+1.5), OE(4,3) delay 1 (+0.2) has a higher RBIC"), "{}", w[0]);

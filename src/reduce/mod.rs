@@ -189,9 +189,10 @@ pub struct Selection {
 pub struct PickBootstrap {
     /// The rules that picked it.
     pub rules: Vec<Rule>,
-    pub nb: u32,
-    pub nf: u32,
-    pub delay: u32,
+    /// Its orders: a number for one input, one entry per input for several.
+    pub nb: crate::table::PerInput,
+    pub nf: crate::table::PerInput,
+    pub delay: crate::table::PerInput,
     /// None: a least-squares model.
     pub k: Option<f64>,
     /// The parameters' names, values and sandwich standard deviations (None without a
@@ -202,6 +203,13 @@ pub struct PickBootstrap {
     /// The sampling period (s): the intervals' frequencies are in rad/sample, f = w / (2 pi ts) Hz.
     pub ts: f64,
     pub intervals: crate::estimate::bootstrap::Bootstrap,
+}
+
+impl PickBootstrap {
+    /// `OE(nB,nF) delay d` for one input, [`crate::oe::Structure::label`] for several.
+    pub fn label(&self) -> String {
+        rules::orders_label(&self.nb, &self.nf, &self.delay)
+    }
 }
 
 fn default_rule() -> Rule {

@@ -151,13 +151,18 @@ fn candidate(row: &CellRow, opts: &ReduceOptions) -> Candidate {
 impl RunnerUp {
     /// `OE(nB,nF) delay d` for one input, [`crate::oe::Structure::label`] for several.
     pub fn label(&self) -> String {
-        match (&self.nb, &self.nf, &self.delay) {
-            (PerInput::Several(nb), PerInput::Several(nf), PerInput::Several(d)) => {
-                let parts: Vec<String> = nb.iter().zip(nf).zip(d).map(|((b, f), d)| format!("{b},{f} d{d}")).collect();
-                format!("OE({})", parts.join("; "))
-            }
-            (nb, nf, d) => format!("OE({nb},{nf}) delay {d}"),
+        orders_label(&self.nb, &self.nf, &self.delay)
+    }
+}
+
+/// `OE(nB,nF) delay d` for one input's orders, [`crate::oe::Structure::label`] for several's.
+pub fn orders_label(nb: &PerInput, nf: &PerInput, delay: &PerInput) -> String {
+    match (nb, nf, delay) {
+        (PerInput::Several(nb), PerInput::Several(nf), PerInput::Several(d)) => {
+            let parts: Vec<String> = nb.iter().zip(nf).zip(d).map(|((b, f), d)| format!("{b},{f} d{d}")).collect();
+            format!("OE({})", parts.join("; "))
         }
+        (nb, nf, d) => format!("OE({nb},{nf}) delay {d}"),
     }
 }
 

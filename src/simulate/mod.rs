@@ -6,6 +6,12 @@
 //! measured output `y = y0 + e + spikes` with Gaussian or Student-t noise `e` and optional
 //! large spikes (the paper's observation outliers).
 //!
+//! A system of several inputs (`{"inputs": [{"b": .., "f": .., "delay": ..}, ..]}`, METHOD.md
+//! 19) gives `y0 = sum_i q^-d_i B_i/F_i u_i`: input 1 is the PRBS above, and every further
+//! input a random binary signal (each sample +/-amplitude with probability 1/2, from its own
+//! random stream of the seed), so the inputs are uncorrelated and no two are collinear at any
+//! frequency (two phases of one PRBS would be, at every line of its spectrum).
+//!
 //! Everything is deterministic: the same system and options give bit-identical records on every
 //! machine, because the random numbers come from our own xoshiro256** generator rather than
 //! from a crate whose stream may change between versions. The seed picks both the PRBS phase
@@ -54,6 +60,13 @@ fn one() -> usize {
     1
 }
 
+/// A system file of several inputs: `{"inputs": [SystemSpec, ...]}`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SeveralInputs {
+    inputs: Vec<SystemSpec>,
+}
+
 /// Reads and checks a system JSON file: valid JSON of the right shape (serde's message gives
 /// line and column), at least one B coefficient, and a stable F (a simulation through an
 /// unstable F diverges, so such a file is always a mistake).
@@ -63,6 +76,32 @@ pub fn read_system(path: &Path) -> Result<SystemSpec> {
         serde_json::from_str(&text).map_err(|e| Error::input(path, format!("invalid system file: {e}")))?;
     check_system(&sys).map_err(|msg| Error::input(path, msg))?;
     Ok(sys)
+}
+
+/// [`read_system`] of a file of one input (as there) or of several, `{"inputs": [{"b": ..,
+/// "f": .., "delay": ..}, ..]}` (1 to [`crate::oe::MAX_INPUTS`] entries, each checked as one
+/// input's and named in a message by its number): every input's system, in order.
+pub fn read_systems(path: &Path) -> Result<Vec<SystemSpec>> {
+    let text = fs::read_to_string(path).map_err(|e| Error::input(path, format!("cannot open file: {e}")))?;
+    let several = matches!(serde_json::from_str(&text), Ok(serde_json::Value::Object(o)) if o.contains_key("inputs"));
+    if !several {
+        return Ok(vec![read_system(path)?]);
+    }
+    let file: SeveralInputs =
+        serde_json::from_str(&text).map_err(|e| Error::input(path, format!("invalid system file: {e}")))?;
+    check_systems(&file.inputs).map_err(|msg| Error::input(path, msg))?;
+    Ok(file.inputs)
+}
+
+/// The checks of [`read_systems`] of several inputs, as a message without the file name.
+fn check_systems(inputs: &[SystemSpec]) -> std::result::Result<(), String> {
+    if !(1..=oe::MAX_INPUTS).contains(&inputs.len()) {
+        return Err(format!("`inputs` has {} entries: give 1 to {}", inputs.len(), oe::MAX_INPUTS));
+    }
+    for (i, sys) in inputs.iter().enumerate() {
+        check_system(sys).map_err(|m| format!("input {}: {m}", i + 1))?;
+    }
+    Ok(())
 }
 
 /// The checks of [`read_system`], as a message without the file name.
@@ -131,7 +170,10 @@ pub struct SimOptions {
 /// A simulated record: input, measured output, and the noise-free output `y0`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimRecord {
+    /// The input; several inputs: their columns one after the other (as
+    /// [`crate::data::Record::u`]), `m` of them.
     pub u: Vec<f64>,
+    pub m: usize,
     pub y: Vec<f64>,
     pub y0: Vec<f64>,
 }
@@ -141,6 +183,8 @@ pub struct SimRecord {
 // without spikes differ exactly by the spikes.
 const NOISE_STREAM: u64 = 1;
 const OUTLIER_STREAM: u64 = 2;
+/// Input i >= 2 of a several-input system (0-based i >= 1) draws from stream `INPUT_STREAM + i`.
+const INPUT_STREAM: u64 = 2;
 
 fn check_options(opts: &SimOptions) -> Result<()> {
     let bad = |msg: String| Err(Error::Invalid(msg));
@@ -177,9 +221,27 @@ fn check_options(opts: &SimOptions) -> Result<()> {
 /// Fails (`Error::Invalid`) on out-of-range options, an empty B or an unstable F.
 pub fn generate(sys: &SystemSpec, opts: &SimOptions) -> Result<SimRecord> {
     check_system(sys).map_err(|m| Error::Invalid(format!("system: {m}")))?;
+    generate_inputs(std::slice::from_ref(sys), opts)
+}
+
+/// [`generate`] of a system of several inputs (one: [`generate`]'s record, to the bit):
+/// input 1 the PRBS, every further input a random binary signal of the same amplitude (see
+/// the module docs), `y0 = sum_i q^-d_i B_i/F_i u_i`.
+pub fn generate_inputs(systems: &[SystemSpec], opts: &SimOptions) -> Result<SimRecord> {
+    check_systems(systems).map_err(|m| Error::Invalid(format!("system: {m}")))?;
     check_options(opts)?;
-    let u = prbs(opts.bits, opts.amplitude, opts.seed, opts.n)?;
-    let y0 = oe::simulate_vec(&sys.b, &sys.f, sys.delay, &u);
+    let m = systems.len();
+    let mut u = prbs(opts.bits, opts.amplitude, opts.seed, opts.n)?;
+    for i in 1..m {
+        let mut rng = Xoshiro256::new(opts.seed, INPUT_STREAM + i as u64);
+        u.extend((0..opts.n).map(|_| if rng.uniform() < 0.5 { -opts.amplitude } else { opts.amplitude }));
+    }
+    let mut y0 = oe::simulate_vec(&systems[0].b, &systems[0].f, systems[0].delay, &u[..opts.n]);
+    for (sys, ui) in systems.iter().zip(u.chunks_exact(opts.n)).skip(1) {
+        for (a, b) in y0.iter_mut().zip(oe::simulate_vec(&sys.b, &sys.f, sys.delay, ui)) {
+            *a += b;
+        }
+    }
     let mut y = y0.clone();
 
     if opts.noise_std > 0.0 {
@@ -224,7 +286,7 @@ pub fn generate(sys: &SystemSpec, opts: &SimOptions) -> Result<SimRecord> {
             }
         }
     }
-    Ok(SimRecord { u, y, y0 })
+    Ok(SimRecord { u, m, y, y0 })
 }
 
 /// Shortest text that parses back to exactly `x`. `{}` alone is shortest-roundtrip too but
@@ -234,19 +296,24 @@ fn fmt_f64(out: &mut impl Write, x: f64) -> std::io::Result<()> {
     if x == 0.0 || (1e-5..1e16).contains(&a) { write!(out, "{x}") } else { write!(out, "{x:e}") }
 }
 
-/// Writes a simulated record as CSV with header `u,y,y0`, in full precision (reading it back
-/// with [`crate::data::read_columns`] gives bit-identical values). Written atomically
+/// Writes a simulated record as CSV with header `u,y,y0` (several inputs: `u1,u2,..,y,y0`), in
+/// full precision (reading it back with [`crate::data::read_columns`] gives bit-identical
+/// values). Written atomically
 /// ([`crate::export::write_atomically`]), so a reader never sees half a file; a missing parent
 /// folder is created.
 pub fn write_csv(path: &Path, rec: &SimRecord) -> Result<()> {
     let fail = |what: &str, e: std::io::Error| Error::output(path, format!("{what}: {e}"));
-    let n = rec.u.len();
-    if rec.y.len() != n || rec.y0.len() != n {
+    let n = rec.y.len();
+    if rec.u.len() != rec.m * n || rec.y0.len() != n {
         return Err(Error::output(
             path,
-            format!("columns of different lengths (u {n}, y {}, y0 {})", rec.y.len(), rec.y0.len()),
+            format!("columns of different lengths (u {} of {} inputs, y {n}, y0 {})", rec.u.len(), rec.m, rec.y0.len()),
         ));
     }
+    let header = match rec.m {
+        1 => "u".to_string(),
+        m => (1..=m).map(|i| format!("u{i}")).collect::<Vec<_>>().join(","),
+    };
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -255,10 +322,12 @@ pub fn write_csv(path: &Path, rec: &SimRecord) -> Result<()> {
     crate::export::write_atomically(path, |file| {
         let mut w = BufWriter::new(file);
         let mut rows = || -> std::io::Result<()> {
-            w.write_all(b"u,y,y0\n")?;
+            writeln!(w, "{header},y,y0")?;
             for i in 0..n {
-                fmt_f64(&mut w, rec.u[i])?;
-                w.write_all(b",")?;
+                for input in rec.u.chunks_exact(n) {
+                    fmt_f64(&mut w, input[i])?;
+                    w.write_all(b",")?;
+                }
                 fmt_f64(&mut w, rec.y[i])?;
                 w.write_all(b",")?;
                 fmt_f64(&mut w, rec.y0[i])?;
@@ -438,6 +507,45 @@ mod tests {
         let (re, im) = oe::freq_response(&sys.b, &sys.f, sys.delay, w);
         let peak = re.hypot(im);
         assert!(peak > 8.0 && peak < 12.0, "gain at 700 Hz {peak}");
+    }
+
+    #[test]
+    fn several_inputs_sum_their_contributions_from_uncorrelated_inputs() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("two.json");
+        let text = r#"{"inputs": [{"b": [0.5, 0.3], "f": [-1.2, 0.5]}, {"b": [0.4], "f": [-0.8], "delay": 2}]}"#;
+        fs::write(&p, text).unwrap();
+        let sys = read_systems(&p).unwrap();
+        assert_eq!((sys.len(), sys[0].delay, sys[1].delay), (2, 1, 2));
+        let o = SimOptions { n: 4000, outliers: None, ..opts(3) };
+        let r = generate_inputs(&sys, &o).unwrap();
+        let (u1, u2) = r.u.split_at(o.n);
+        assert_eq!((r.m, u1), (2, &generate(&sys[0], &o).unwrap().u[..]), "input 1 is the one-input PRBS");
+        let sum: Vec<f64> = oe::simulate_vec(&sys[0].b, &sys[0].f, 1, u1)
+            .iter()
+            .zip(oe::simulate_vec(&sys[1].b, &sys[1].f, 2, u2))
+            .map(|(a, b)| a + b)
+            .collect();
+        assert_eq!(r.y0, sum);
+        assert!(u2.iter().all(|v| v.abs() == 10.0));
+        let corr = u1.iter().zip(u2).map(|(a, b)| a * b).sum::<f64>() / (100.0 * o.n as f64);
+        assert!(corr.abs() < 0.05, "correlation of the inputs {corr}");
+        let csv = dir.path().join("two.csv");
+        write_csv(&csv, &r).unwrap();
+        let cols = crate::data::read_columns(&csv, &["u1", "u2", "y", "y0"]).unwrap();
+        assert_eq!((&cols[0][..], &cols[1][..], &cols[2], &cols[3]), (u1, u2, &r.y, &r.y0));
+        // One input in a list is the one-input file's system.
+        fs::write(&p, r#"{"inputs": [{"b": [1, 0.5], "f": [-0.9]}]}"#).unwrap();
+        assert_eq!(read_systems(&p).unwrap(), vec![SystemSpec { b: vec![1.0, 0.5], f: vec![-0.9], delay: 1 }]);
+        for (text, want) in [
+            (r#"{"inputs": [{"b": [1], "f": []}, {"b": [1], "f": [-1.5]}]}"#, "input 2: F is unstable"),
+            (r#"{"inputs": []}"#, "`inputs` has 0 entries: give 1 to 8"),
+            (r#"{"inputs": [{"b": [1], "f": []}], "delay": 1}"#, "unknown field `delay`"),
+        ] {
+            fs::write(&p, text).unwrap();
+            let e = read_systems(&p).unwrap_err().to_string();
+            assert!(e.contains("two.json") && e.contains(want), "{e}");
+        }
     }
 
     #[test]

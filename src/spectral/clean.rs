@@ -7,7 +7,7 @@
 //!
 //! The predictor is an ARX model `y_t = sum_{j=1}^{p} a_j y_{t-j} + sum_{i=0}^{p} b_i u_{t-i} + c`
 //! (a high-order ARX model approximates the one-step predictor of an OE system with white
-//! output noise), fitted by Huber IRLS (tuning 1.345 robust standard deviations, scale 1.4826
+//! output noise; several inputs: one sum of p + 1 lags per input), fitted by Huber IRLS (tuning 1.345 robust standard deviations, scale 1.4826
 //! times the median absolute residual). Regressors of past outputs are spikes themselves until
 //! cleaned, so fit and cleaning alternate for a few passes, each fit on the previous pass's
 //! cleaned output.
@@ -39,12 +39,16 @@ pub struct Cleaned {
     pub replaced: usize,
 }
 
-/// `y` with its spikes replaced by robust predictions from the cleaned past and `u`.
+/// `y` with its spikes replaced by robust predictions from the cleaned past and `u`: one input
+/// column or several, one after the other (`u.len()` a multiple of `y.len()`; each input gets
+/// its own p + 1 lags in the predictor).
 pub fn clean(u: &[f64], y: &[f64], opts: &CleanOptions) -> Cleaned {
     let n = y.len();
+    assert!(n > 0 && u.len().is_multiple_of(n) && !u.is_empty(), "{} input values for {n} output samples", u.len());
     let p = opts.order.min(n / 20).max(1);
+    let d = columns(p, u.len() / n);
     let mut replaced = 0;
-    if n <= 4 * (2 * p + 2) {
+    if n <= 4 * d {
         return Cleaned { y: y.to_vec(), replaced };
     }
     // The first fit's regressors are the output's own past, spikes included: start from the
@@ -52,7 +56,7 @@ pub fn clean(u: &[f64], y: &[f64], opts: &CleanOptions) -> Cleaned {
     // not already spoiled by them (each spike sits in p regressors of as many rows).
     let start = median_cleaned(y, opts.threshold);
     let mut yc = start.clone();
-    let mut ws = Workspace::new(n - p, 2 * p + 2);
+    let mut ws = Workspace::new(n - p, d);
     for _ in 0..opts.passes {
         let Some((theta, scale)) = robust_arx(u, &yc, p, &mut ws) else { break };
         if scale.is_nan() || scale <= 0.0 {
@@ -108,14 +112,24 @@ fn median_cleaned(y: &[f64], threshold: f64) -> Vec<f64> {
     y.iter().zip(&med).map(|(&v, &m)| if (v - m).abs() > threshold * scale { m } else { v }).collect()
 }
 
-/// The ARX prediction of sample t from `y`'s past and `u` up to t.
+/// The predictor's number of parameters: p output lags, p + 1 lags of each of `m` inputs, and
+/// the constant.
+fn columns(p: usize, m: usize) -> usize {
+    p + m * (p + 1) + 1
+}
+
+/// The ARX prediction of sample t from `y`'s past and `u` (every input) up to t.
 fn predict(theta: &[f64], u: &[f64], y: &[f64], p: usize, t: usize) -> f64 {
-    let mut s = theta[2 * p + 1];
+    let n = y.len();
+    let m = u.len() / n;
+    let mut s = theta[columns(p, m) - 1];
     for j in 1..=p {
         s += theta[j - 1] * y[t - j];
     }
-    for i in 0..=p {
-        s += theta[p + i] * u[t - i];
+    for (input, th) in u.chunks_exact(n).zip(theta[p..].chunks_exact(p + 1)) {
+        for i in 0..=p {
+            s += th[i] * input[t - i];
+        }
     }
     s
 }
@@ -146,17 +160,19 @@ fn robust_arx(u: &[f64], y: &[f64], p: usize, ws: &mut Workspace) -> Option<(Vec
     const ITERATIONS: usize = 5;
     let n = y.len();
     let rows = n - p;
-    let d = 2 * p + 2;
+    let d = columns(p, u.len() / n);
     let x = &mut ws.x;
     for (r, row) in x.chunks_exact_mut(d).enumerate() {
         let t = r + p;
         for (j, v) in row[..p].iter_mut().enumerate() {
             *v = y[t - 1 - j];
         }
-        for (i, v) in row[p..2 * p + 1].iter_mut().enumerate() {
-            *v = u[t - i];
+        for (input, lags) in u.chunks_exact(n).zip(row[p..d - 1].chunks_exact_mut(p + 1)) {
+            for (i, v) in lags.iter_mut().enumerate() {
+                *v = input[t - i];
+            }
         }
-        row[2 * p + 1] = 1.0;
+        row[d - 1] = 1.0;
     }
     let x = &ws.x;
     let mut w = vec![1.0; rows];

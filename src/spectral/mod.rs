@@ -40,6 +40,9 @@
 //! better than `G_model = 0`, and it is negative for worse models (like the time-domain `fit`).
 
 pub mod clean;
+mod inputs;
+
+pub use inputs::{combined_band_fit, estimate_inputs, welch_inputs};
 
 use crate::error::{Error, Result};
 use crate::oe::freq_response;
@@ -128,6 +131,10 @@ pub struct SpectralEstimate {
     pub segments: usize,
     /// Output samples replaced by the cleaning of [`SpectrumMethod::Robust`] (0 for plain Welch).
     pub replaced: usize,
+    /// One input of several ([`welch_inputs`]): the normalised random error of `|G_spec|` per
+    /// bin (NaN where the inputs have no power), which [`SpectralEstimate::magnitude_band`]
+    /// takes instead of the one-input formula. Empty for one input.
+    pub gain_error: Vec<f64>,
 }
 
 /// Settings of [`welch`].
@@ -165,31 +172,7 @@ pub fn welch_within(u: &[f64], y: &[f64], seams: &[usize], ts: f64, opts: &Welch
     if y.len() != n {
         return Err(Error::Invalid(format!("spectral estimate: input has {n} samples but output has {}", y.len())));
     }
-    if n < MIN_SAMPLES {
-        return Err(Error::Invalid(format!("spectral estimate: {n} samples, need at least {MIN_SAMPLES}")));
-    }
-    if !(ts.is_finite() && ts > 0.0) {
-        return Err(Error::Invalid(format!("spectral estimate: sampling period must be positive, got {ts}")));
-    }
-    if !(0.0..1.0).contains(&opts.overlap) {
-        return Err(Error::Invalid(format!("spectral estimate: overlap must be in [0, 1), got {}", opts.overlap)));
-    }
-    if let Some(t) = u.iter().zip(y).position(|(a, b)| !(a.is_finite() && b.is_finite())) {
-        return Err(Error::Invalid(format!("spectral estimate: non-finite sample at index {t}")));
-    }
-
-    let experiments = crate::data::experiment_ranges(n, seams);
-    let shortest = experiments.iter().map(|e| e.len()).min().unwrap_or(n);
-    if shortest < MIN_SAMPLES {
-        return Err(Error::Invalid(format!(
-            "spectral estimate: an experiment of {shortest} samples, need at least {MIN_SAMPLES}"
-        )));
-    }
-    let m = segment_length(opts.segment, shortest);
-    // round() keeps 50 % overlap exact; clamp(1, ..) guards an overlap close to 1.
-    let step = ((m as f64 * (1.0 - opts.overlap)).round() as usize).clamp(1, m);
-    let starts: Vec<usize> =
-        experiments.iter().flat_map(|e| (0..1 + (e.len() - m) / step).map(move |s| e.start + s * step)).collect();
+    let (m, starts) = segmentation(u, y, seams, ts, opts)?;
     let segments = starts.len();
     let bins = m / 2 + 1;
 
@@ -232,21 +215,23 @@ pub fn welch_within(u: &[f64], y: &[f64], seams: &[usize], ts: f64, opts: &Welch
         }
     }
     let freq_hz = (0..bins).map(|k| k as f64 / (m as f64 * ts)).collect();
-    Ok(SpectralEstimate { freq_hz, re, im, coherence, segment: m, ts, segments, replaced: 0 })
+    Ok(SpectralEstimate { freq_hz, re, im, coherence, segment: m, ts, segments, replaced: 0, gain_error: Vec::new() })
 }
 
 impl SpectralEstimate {
     /// An approximate 95 % band of `|G_spec|` at bin `k`: `|G| (1 -/+ 2 e)` with the normalised
     /// random error of a gain estimate `e = sqrt(1 - gamma^2) / (|gamma| sqrt(2 K))` (Bendat &
-    /// Piersol, Random Data, 9.3), K segments, gamma^2 the coherence. None where `G_spec` is not
-    /// finite.
+    /// Piersol, Random Data, 9.3), K segments, gamma^2 the coherence; one input of several
+    /// takes its own `e` ([`SpectralEstimate::gain_error`]). None where `G_spec` is not finite.
     pub fn magnitude_band(&self, k: usize) -> Option<(f64, f64)> {
         let (re, im, c) = (self.re[k], self.im[k], self.coherence[k]);
         if !(re.is_finite() && im.is_finite() && c.is_finite()) {
             return None;
         }
         let mag = re.hypot(im);
-        let e = if c > 0.0 {
+        let e = if let Some(&e) = self.gain_error.get(k) {
+            if e.is_finite() { e } else { f64::INFINITY }
+        } else if c > 0.0 {
             (1.0 - c).max(0.0).sqrt() / (c.sqrt() * (2.0 * self.segments as f64).sqrt())
         } else {
             f64::INFINITY
@@ -303,6 +288,39 @@ pub fn band_fit(est: &SpectralEstimate, bins: &[usize], b: &[f64], f: &[f64], de
         return Some(f64::NEG_INFINITY);
     }
     Some(100.0 * (1.0 - (err2 / ref2).sqrt()))
+}
+
+/// The segment length and the segments' starts of the record `u` (any number of input
+/// columns, one after the other), `y` cut at `seams` (see [`welch_within`]), after checking its
+/// length, samples, `ts` and the overlap.
+fn segmentation(u: &[f64], y: &[f64], seams: &[usize], ts: f64, opts: &WelchOptions) -> Result<(usize, Vec<usize>)> {
+    let n = y.len();
+    if n < MIN_SAMPLES {
+        return Err(Error::Invalid(format!("spectral estimate: {n} samples, need at least {MIN_SAMPLES}")));
+    }
+    if !(ts.is_finite() && ts > 0.0) {
+        return Err(Error::Invalid(format!("spectral estimate: sampling period must be positive, got {ts}")));
+    }
+    if !(0.0..1.0).contains(&opts.overlap) {
+        return Err(Error::Invalid(format!("spectral estimate: overlap must be in [0, 1), got {}", opts.overlap)));
+    }
+    let inputs = u.len() / n;
+    if let Some(t) = (0..n).find(|&t| !(y[t].is_finite() && (0..inputs).all(|i| u[i * n + t].is_finite()))) {
+        return Err(Error::Invalid(format!("spectral estimate: non-finite sample at index {t}")));
+    }
+    let experiments = crate::data::experiment_ranges(n, seams);
+    let shortest = experiments.iter().map(|e| e.len()).min().unwrap_or(n);
+    if shortest < MIN_SAMPLES {
+        return Err(Error::Invalid(format!(
+            "spectral estimate: an experiment of {shortest} samples, need at least {MIN_SAMPLES}"
+        )));
+    }
+    let m = segment_length(opts.segment, shortest);
+    // round() keeps 50 % overlap exact; clamp(1, ..) guards an overlap close to 1.
+    let step = ((m as f64 * (1.0 - opts.overlap)).round() as usize).clamp(1, m);
+    let starts =
+        experiments.iter().flat_map(|e| (0..1 + (e.len() - m) / step).map(move |s| e.start + s * step)).collect();
+    Ok((m, starts))
 }
 
 /// Largest power of two `<= min(requested, n/2)`, at least [`MIN_SEGMENT`]; `n >= MIN_SAMPLES`.

@@ -60,7 +60,8 @@ pub struct Context<'a> {
     /// The records with their levels taken out ([`Levels::apply`]).
     pub est: &'a Record,
     pub val: Option<&'a Record>,
-    pub band: Option<(&'a SpectralEstimate, &'a [usize])>,
+    /// The spectral estimate, one per input, and the band's bins.
+    pub band: Option<(&'a [SpectralEstimate], &'a [usize])>,
     pub solver: SolverOptions,
     /// The levels taken out of the records; `levels.mode` says whether the fits estimate an
     /// output offset.

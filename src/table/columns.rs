@@ -193,6 +193,10 @@ pub enum Split {
     /// Coefficients held flat (every input's after the other) in the row: one list per input,
     /// of nB_i (`b`, `b_std`) or nF_i (`f`, `f_std`) values.
     Coefficients(OrderField),
+    /// One number per input held as a list in the row (`fit_band_i`): no column for one
+    /// input, a float column per input for several, named with the input's number in place of
+    /// the `i` (`fit_band_1 .. fit_band_m`; every input's null where the row has no list).
+    PerInput,
 }
 
 /// One of an input's orders.
@@ -272,6 +276,9 @@ macro_rules! column {
     (order $field:ident $name:literal, |$r:ident| $place:expr) => {
         column!(@ $name, u32, false, true, Split::Order(OrderField::$field), |$r| $place)
     };
+    (per_input $name:literal, |$r:ident| $place:expr) => {
+        column!(@ $name, Option<Vec<f64>>, true, true, Split::PerInput, |$r| $place)
+    };
     (coefficients $field:ident $($opt:ident)? $name:literal, |$r:ident| $place:expr) => {
         column!(@ $name, Vec<f64>, column!(@opt $($opt)?), true, Split::Coefficients(OrderField::$field), |$r| $place)
     };
@@ -292,6 +299,7 @@ pub const COLUMNS: &[Column] = &[
     column!("fit", Option<f64>, |r| r.fit.fit),
     column!("fit_val", Option<f64>, |r| r.fit.fit_val),
     column!("fit_band", Option<f64>, |r| r.fit.fit_band),
+    column!(per_input "fit_band_i", |r| r.fit.fit_band_inputs),
     column!("iterations", Option<u32>, |r| r.fit.iterations),
     column!("termination", Option<String>, |r| r.fit.termination),
     column!("converged", bool, |r| r.fit.converged),

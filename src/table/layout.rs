@@ -5,7 +5,9 @@
 //! - `nb`, `nf`, `delay` become plain integer columns `nb_1 .. nb_m`, `nf_1 .. nf_m`,
 //!   `delay_1 .. delay_m` (what polars' `filter` and DuckDB's `WHERE` take directly);
 //! - `b`, `f`, `b_std`, `f_std` become lists of lists, one list per input (input i's nB_i or
-//!   nF_i values; an empty outer list where the row has none, as a failed row).
+//!   nF_i values; an empty outer list where the row has none, as a failed row);
+//! - `fit_band_i` (each input's band fit) becomes `fit_band_1 .. fit_band_m`; a one-input
+//!   table has no such column (its `fit_band` is the input's).
 //!
 //! A row's JSON ([`RowJson`], the picks of `selection.json`) follows the same layout.
 //!
@@ -24,7 +26,7 @@ pub struct TableColumn {
     pub ty: ColumnType,
     /// The column of [`COLUMNS`] it comes from (nulls, optional, reproducible as there).
     pub column: &'static Column,
-    /// The input of a split order column (0-based).
+    /// The input of a split order or per-input column (0-based).
     input: Option<usize>,
     m: usize,
 }
@@ -39,6 +41,12 @@ pub fn layout(m: usize) -> Vec<TableColumn> {
                 out.extend((0..m).map(|i| one(format!("{}_{}", c.name, i + 1), ColumnType::U32, Some(i))))
             }
             Split::Coefficients(_) if m > 1 => out.push(one(c.name.to_string(), ColumnType::ListListF64, None)),
+            Split::PerInput if m > 1 => {
+                let stem = c.name.strip_suffix("_i").expect("a per-input column's name ends in `_i`");
+                out.extend((0..m).map(|i| one(format!("{stem}_{}", i + 1), ColumnType::F64, Some(i))))
+            }
+            // One input's number is the column without `_i` (`fit_band`).
+            Split::PerInput => {}
             _ => out.push(one(c.name.to_string(), c.ty, None)),
         }
     }
@@ -75,6 +83,10 @@ impl TableColumn {
         let c = self.column;
         match (c.split, self.m) {
             (_, 1) | (Split::No, _) => (c.get)(row),
+            (Split::PerInput, _) => {
+                let Value::ListF64(list) = (c.get)(row) else { return Value::F64(None) };
+                Value::F64(list.and_then(|l| self.input.and_then(|i| l.get(i).copied())))
+            }
             (Split::Order(field), _) => {
                 let s = row.key.structure();
                 Value::U32(self.input.and_then(|i| s.inputs().get(i)).map(|o| field.get(o) as u32))
@@ -113,6 +125,20 @@ impl TableColumn {
         }
         match (c.split, self.m) {
             (_, 1) | (Split::No, _) => columns::set(row, c, v),
+            (Split::PerInput, m) => {
+                let i = self.input.expect("a per-input column names its input");
+                let Value::F64(x) = v else { return Err(format!("column `{name}`: unexpected value {v:?}")) };
+                let Value::ListF64(list) = (c.get)(row) else { unreachable!("a per-input column holds a list") };
+                let list = match (list, x) {
+                    (list, None) => list,
+                    (list, Some(x)) => {
+                        let mut l = list.unwrap_or_else(|| vec![f64::NAN; m]);
+                        l[i] = x;
+                        Some(l)
+                    }
+                };
+                columns::set(row, c, Value::ListF64(list))
+            }
             (Split::Order(field), _) => {
                 let Value::U32(Some(x)) = v else { return Err(format!("column `{name}`: unexpected value {v:?}")) };
                 let i = self.input.expect("an order column of several inputs names its input");
@@ -214,7 +240,8 @@ mod tests {
     #[test]
     fn one_input_layout_is_the_column_list() {
         let names: Vec<String> = layout(1).into_iter().map(|c| c.name).collect();
-        assert_eq!(names, COLUMNS.iter().map(|c| c.name.to_string()).collect::<Vec<_>>());
+        let listed = COLUMNS.iter().filter(|c| c.split != Split::PerInput).map(|c| c.name.to_string());
+        assert_eq!(names, listed.collect::<Vec<_>>());
     }
 
     #[test]
@@ -225,7 +252,14 @@ mod tests {
         row.status = crate::table::Status::Ok;
         row.fit.b = vec![1.0, 2.0, 3.0];
         row.fit.f = vec![0.1, 0.2, 0.3];
+        row.fit.fit_band_inputs = Some(vec![91.0, 83.0]);
         let cols = layout(2);
+        let per_input = |name: &str| cols.iter().find(|c| c.name == name).unwrap().get(&row);
+        assert_eq!(
+            (per_input("fit_band_1"), per_input("fit_band_2")),
+            (Value::F64(Some(91.0)), Value::F64(Some(83.0)))
+        );
+        assert!(!cols.iter().any(|c| c.name == "fit_band_i"));
         let names: Vec<&str> = cols.iter().map(|c| c.name.as_str()).take(7).collect();
         assert_eq!(names, ["method", "nb_1", "nb_2", "nf_1", "nf_2", "delay_1", "delay_2"]);
         let b = cols.iter().find(|c| c.name == "b").unwrap();

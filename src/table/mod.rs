@@ -74,6 +74,9 @@ pub struct Fit {
     pub fit: Option<f64>,
     pub fit_val: Option<f64>,
     pub fit_band: Option<f64>,
+    /// Several inputs: each input's band fit, `fit_band` their mean (null where `fit_band` is,
+    /// and for one input, whose table has no such columns).
+    pub fit_band_inputs: Option<Vec<f64>>,
     pub iterations: Option<u32>,
     /// [`Termination::as_str`].
     pub termination: Option<String>,
@@ -166,6 +169,7 @@ impl CellRow {
                 fit: finite(x.assessment.fit),
                 fit_val: x.assessment.fit_val,
                 fit_band: x.assessment.fit_band,
+                fit_band_inputs: x.assessment.fit_band_inputs.clone(),
                 iterations: Some(x.iterations as u32),
                 termination: Some(x.termination.as_str().to_string()),
                 converged: x.termination.converged(),
