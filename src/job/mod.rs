@@ -10,6 +10,7 @@ use crate::error::{Error, Result};
 use crate::estimate::InitialState;
 use crate::estimate::SolverOptions;
 
+mod grid;
 mod inputs;
 mod parse;
 mod per_input;
@@ -17,6 +18,7 @@ mod uncertainty;
 mod validate;
 
 pub use crate::reduce::SelectionSettings;
+pub use grid::{Grid, KGrid, KRange, SearchMode, Spacing};
 pub use inputs::{Inputs, inputs_of_records, load_inputs, read_inputs, read_records};
 pub use per_input::{Delays, InputColumns, InputGrid, Ranges, check_count, structure_of};
 use serde::{Deserialize, Serialize};
@@ -168,95 +170,6 @@ impl<'de> Deserialize<'de> for Records {
             }
         }
         d.deserialize_any(Visitor)
-    }
-}
-
-/// k values: an explicit list or a generated range.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-#[serde(untagged)]
-pub enum KGrid {
-    List(Vec<f64>),
-    Range(KRange),
-}
-
-/// By hand rather than `untagged`, whose error names neither form ([`parse`]).
-impl<'de> Deserialize<'de> for KGrid {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        struct Visitor;
-        impl<'de> serde::de::Visitor<'de> for Visitor {
-            type Value = KGrid;
-            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-                f.write_str("a list of k values [k1, k2, ...] or a range {\"from\": a, \"to\": b, \"count\": n}")
-            }
-            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> std::result::Result<KGrid, A::Error> {
-                KRange::deserialize(serde::de::value::MapAccessDeserializer::new(map)).map(KGrid::Range)
-            }
-            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<KGrid, A::Error> {
-                let mut ks = Vec::new();
-                while let Some(k) = seq.next_element::<f64>()? {
-                    ks.push(k);
-                }
-                Ok(KGrid::List(ks))
-            }
-        }
-        d.deserialize_any(Visitor)
-    }
-}
-
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct KRange {
-    pub from: f64,
-    pub to: f64,
-    pub count: usize,
-    #[serde(default)]
-    pub spacing: Spacing,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Spacing {
-    #[default]
-    Linear,
-    Log,
-}
-
-crate::names::names!(Spacing { Linear = "linear", Log = "log" });
-
-/// The grid: each of `nb`, `nf` and `delay` one range for every input or a list of ranges, one
-/// per input ([`Ranges`]); the structures are the product over the inputs.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct Grid {
-    /// Inclusive range [from, to] of nB.
-    pub nb: Ranges,
-    /// Inclusive range [from, to] of nF.
-    pub nf: Ranges,
-    pub k: KGrid,
-    /// Inclusive range [from, to] of the input delay d in samples (default: the job's
-    /// top-level `delay`, itself 1 by default).
-    #[serde(default)]
-    pub delay: Option<Ranges>,
-    /// How several inputs' structures are searched ([`crate::search`]): written only when not
-    /// the default, so a job of today writes the job.json it always did.
-    #[serde(default, skip_serializing_if = "SearchMode::is_auto")]
-    pub search: SearchMode,
-}
-
-/// `grid.search`: the full product of several inputs' grids, the coordinate search, or
-/// (`auto`, the default) the product up to [`crate::search::PRODUCT_LIMIT`] structures.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum SearchMode {
-    #[default]
-    Auto,
-    Product,
-    Coordinate,
-}
-
-crate::names::names!(SearchMode { Auto = "auto", Product = "product", Coordinate = "coordinate" });
-
-impl SearchMode {
-    fn is_auto(&self) -> bool {
-        *self == SearchMode::Auto
     }
 }
 
