@@ -210,14 +210,23 @@ pub(super) fn print_layout(plan: &Plan, n: usize) {
 
 /// M1, M2 and the lead rule's pick, each with its score under the name of the fit column that
 /// ranked it (`fit_val`, `fit_band` or `fit`): the estimation fit `fit` is another number.
+/// A picked model's name: `OE(nB, nF)` (with `delay d`) for one input, every input's orders
+/// for several.
+fn model_name(key: &crate::table::RowKey, with_delay: bool) -> String {
+    match key.m() {
+        1 if with_delay => format!("OE({}, {}) delay {}", key.nb, key.nf, key.delay),
+        1 => format!("OE({}, {})", key.nb, key.nf),
+        _ => key.structure().label(),
+    }
+}
+
 pub(super) fn print_picks(selection: &reduce::Selection) {
     let basis = selection.basis.column();
     for (label, pick) in [("M1 (W minima)  ", &selection.m1), ("M2 (L1C minima)", &selection.m2)] {
         match pick {
             Some(m) => outln!(
-                "{label} OE({}, {}) k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  {basis} = {}",
-                m.model.key.nb,
-                m.model.key.nf,
+                "{label} {} k = {} gamma = {:.4e}  W = {:.4e}  L1C = {:.2} %  {basis} = {}",
+                model_name(&m.model.key, false),
                 crate::text::k(m.model.k()),
                 m.model.gamma(),
                 m.model.criterion(),
@@ -230,11 +239,9 @@ pub(super) fn print_picks(selection: &reduce::Selection) {
     let rule = selection.rule;
     match selection.picks.get(&rule).and_then(|p| p.model.as_ref()) {
         Some(m) => outln!(
-            "pick ({}) OE({}, {}) delay {}{}  {} = {}",
+            "pick ({}) {}{}  {} = {}",
             rule.as_str(),
-            m.key.nb,
-            m.key.nf,
-            m.key.delay,
+            model_name(&m.key, true),
             m.row.k.map_or(" (least squares)".to_string(), |k| format!(" k = {}", crate::text::k(k))),
             basis,
             opt_pct(Some(m.score).filter(|v| v.is_finite()))
