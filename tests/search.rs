@@ -152,3 +152,21 @@ fn shards_and_merge_refuse_a_coordinate_search_by_name() {
     assert!(matches!(o.end, engine::RunEnd::Merged { .. }));
     assert!(o.cells > 0 && o.cells < 64 * 2, "{} cells", o.cells);
 }
+
+#[test]
+fn plan_says_which_search_runs_and_estimates_its_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = job(dir.path(), "coordinate");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep")).arg("plan").arg(&path).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}{}", String::from_utf8_lossy(&out.stderr));
+    // Three inputs of 4 orders each: 1 + 3 x 3 structures per cycle, of the product's 64.
+    assert!(text.contains("search     coordinate (grid.search)"), "{text}");
+    assert!(text.contains("10 structures (20 cells) per cycle over the inputs, of the product's 64"), "{text}");
+    assert!(text.contains("time       about "), "{text}");
+    let path = job(dir.path(), "auto");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep")).arg("plan").arg(&path).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("cells      128 Huber cells + 64 least-squares fits"), "{text}");
+    assert!(!text.contains("search     coordinate"), "{text}");
+}
