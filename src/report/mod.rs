@@ -38,6 +38,11 @@
 //!
 //! 8. **Every pick rule and the information criteria against nB + nF** (`rules.rs`).
 //!
+//! A model of several inputs (`inputs.rs`) has figures 1-3 per input, on the input's slice of
+//! the grid through the lead pick (the other inputs at its orders); figure 4 is left out; figure
+//! 5 is one per pick and input without a measured estimate (no per-input spectral estimate of a
+//! several-input record exists yet); the residuals' cross-correlation is one per input.
+//!
 //! and tables: the picks with gamma, sigma, W, L1C, fits, pole radius and convergence, the
 //! least-squares fits of the same orders, b and f (paper Tables 2, 3), the reducer's rule
 //! sentence and best candidates, every rule's pick, and links to the result files.
