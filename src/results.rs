@@ -37,7 +37,6 @@ pub fn read_results(folder: &Path) -> Result<Results> {
     let rows = crate::export::parquet::read_cells(&folder.join(CELLS_FILE))?;
     let selection = read_selection(&folder.join(SELECTION_FILE))?;
     let (job, version) = crate::job::read_as_run(&folder.join(JOB_FILE))?;
-    job.single_input_only("the report or an export")?;
     Ok(Results { folder: folder.to_path_buf(), rows, selection, job, version })
 }
 

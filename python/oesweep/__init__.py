@@ -182,20 +182,18 @@ class Model:
             return tf(pairs[0][0], pairs[0][1], float(self.ts))
         return tf([[list(n) for n, _ in pairs]], [[list(d) for _, d in pairs]], float(self.ts))
 
-    def _single_input(self, what: str) -> None:
-        if self.inputs > 1:
-            raise JobError(f"{what} writes one input's transfer function; a model of {self.inputs} inputs is not written yet")
-
-    def to_continuous(self, method: str = "zoh") -> "ContinuousModel":
+    def to_continuous(self, method: str = "zoh") -> Union["ContinuousModel", List["ContinuousModel"]]:
         """The continuous-time equivalent for control design, as ``oesweep export --continuous``
         computes it: ``"zoh"`` (the continuous system whose zero-order-hold sampling is the
         model) or ``"tustin"`` (the inverse bilinear map). The delay leaves as a dead time
         (``input_delay``, seconds), never as poles. ValueError, naming the pole, when there is no
         equivalent: under ZOH a pole at or near z = 0 or on the negative real axis, under
         Tustin a pole at z = -1. At high orders or short sample times use the result's
-        ``zeros``, ``poles``, ``gain`` or ``state_space`` rather than ``num``, ``den``."""
-        self._single_input("to_continuous")
-        return ContinuousModel(json.loads(_oesweep.to_continuous(json.dumps(self._document()), method)))
+        ``zeros``, ``poles``, ``gain`` or ``state_space`` rather than ``num``, ``den``. Several
+        inputs: a list of one equivalent per input, each input's filter converted on its own
+        (the error names the input)."""
+        doc = json.loads(_oesweep.to_continuous(json.dumps(self._document()), method))
+        return [ContinuousModel(d) for d in doc] if isinstance(doc, list) else ContinuousModel(doc)
 
     def to_dict(self) -> Dict[str, Any]:
         """The model's fields (JSON-serialisable); ``Model(d)`` rebuilds it."""
@@ -205,8 +203,10 @@ class Model:
         """The model as ``oesweep export --to json|matlab|mat`` writes it: ``"json"`` (``num``,
         ``den``, ``dt``, offset, delay, covariance), ``"matlab"`` (a script that builds the
         ``tf`` and, with the System Identification Toolbox, the ``idpoly``) or ``"mat"`` (a
-        level-5 MAT-file, ``path`` required). Writes ``path`` when given, else returns the text."""
-        self._single_input("export")
+        level-5 MAT-file, ``path`` required). Writes ``path`` when given, else returns the text.
+        Several inputs: ``num``, ``den``, ``b``, ``f``, ``delay``, ``input_level`` hold one entry
+        per input (``control.tf([num], [den], dt)`` is the 1 x m system), the script builds
+        MATLAB's MISO ``idpoly`` (``B``, ``F`` cell arrays) and the MAT-file holds cell arrays."""
         doc = self._document()
         if to == "mat":
             if path is None:
@@ -222,15 +222,22 @@ class Model:
     def _document(self) -> Dict[str, Any]:
         """The model as the document of ``oesweep export --to json`` (what the engine reads back)."""
         k = f" at k = {self.k}" if self.k is not None else " (least squares)"
+        parts = self._parts()
+        if self.inputs == 1:
+            b, f, delay, level = parts[0]
+            orders = f"OE({len(b)},{len(f)}) delay {delay}"
+        else:
+            b, f, delay, level = (list(x) for x in zip(*parts))
+            orders = "OE(" + "; ".join(f"{len(bi)},{len(fi)} d{d}" for bi, fi, d, _ in parts) + ")"
         return {
-            "model": self.model or f"OE({len(self.b)},{len(self.f)}) delay {self.delay}{k}",
+            "model": self.model or f"{orders}{k}",
             "dt": float(self.ts),
-            "b": list(self.b),
-            "f": list(self.f),
-            "delay": int(self.delay),
+            "b": b,
+            "f": f,
+            "delay": delay,
             "k": self.k,
             "offset": self.offset,
-            "input_level": float(self.input_level or 0.0),
+            "input_level": level,
             "parameters": list(self.parameters or []),
             "covariance": self.covariance,
             "noise_variance": self.noise_variance
@@ -422,6 +429,9 @@ class Sweep:
         # covariance from the export.
         name = {"m1": "paper_m1", "m2": "paper_m2", None: self.selection.get("rule")}.get(rule, rule)
         row = ((self.selection.get("picks") or {}).get(name) or {}).get("model") or {}
+        if isinstance(doc["delay"], list):
+            # Several inputs: the row names its orders nb_1, nb_2, ...; the model has lists.
+            row = {**row, "nb": [len(b) for b in doc["b"]], "nf": [len(f) for f in doc["f"]]}
         return Model({**row, **doc, "ts": doc["dt"]})
 
     @property

@@ -272,15 +272,18 @@ fn write_model(py: Python<'_>, doc: &str, to: &str, out: Option<PathBuf>) -> PyR
 /// The continuous-time equivalent (`oesweep export --continuous`) of a model document (`oesweep
 /// export --to json`'s form) by `method` = "zoh" or "tustin", as JSON text: `method`, `num`,
 /// `den` (descending powers of s), `input_delay` (seconds), `delay_samples`, `zeros`, `poles`
-/// (`[re, im]` pairs), `gain`, `state_space` (`a`, `b`, `c`, `d`). A model without an
-/// equivalent raises ValueError naming the pole.
+/// (`[re, im]` pairs), `gain`, `state_space` (`a`, `b`, `c`, `d`); a model of several inputs
+/// gives a list of one such object per input. A model without an equivalent raises ValueError
+/// naming the pole (and the input).
 #[pyfunction]
 fn to_continuous(py: Python<'_>, doc: &str, method: &str) -> PyResult<String> {
     py.detach(|| {
         let model = oesweep::export::model::ModelOut::from_json_text(doc).map_err(JobError::new_err)?;
         let method = method.parse::<oesweep::export::continuous::Method>().map_err(JobError::new_err)?;
-        let c = model.to_continuous(method).map_err(|e| PyValueError::new_err(e.to_string()))?;
-        serde_json::to_string(&c).map_err(|e| PyRuntimeError::new_err(e.to_string()))
+        let c = model.to_continuous(method).map_err(PyValueError::new_err)?;
+        // One input: its equivalent; several: a list of one per input.
+        let text = if c.len() == 1 { serde_json::to_string(&c[0]) } else { serde_json::to_string(&c) };
+        text.map_err(|e| PyRuntimeError::new_err(e.to_string()))
     })
 }
 

@@ -1,6 +1,8 @@
 """Several inputs through the package: `fit` with a 2-D array or a list of inputs, the model's
 per-input fields and methods, `read` of several columns, and the clear errors (issue 46)."""
 
+import json
+
 import numpy as np
 import pytest
 import scipy.signal
@@ -56,13 +58,77 @@ def test_per_input_responses_and_python_control_has_one_input_per_model_input():
     assert control is not None
 
 
-def test_what_is_not_written_for_several_inputs_says_so():
+# dlsim warns of the delay's exact leading zeros of num.
+@pytest.mark.filterwarnings("ignore:Badly conditioned filter coefficients")
+def test_the_export_of_several_inputs_has_one_filter_per_input_that_simulates_the_model():
+    u, y = miso_record(noise=0.05)
+    m = oesweep.fit(u, y, [2, 1], [2, 1], 1.0, delay=[1, 2], offset="estimate")
+    doc = json.loads(m.export())
+    assert doc["delay"] == [1, 2] and len(doc["num"]) == 2 and len(doc["input_level"]) == 2
+    assert [len(b) for b in doc["b"]] == [2, 1]
+    # scipy: each input's transfer function simulated on its input (less its level), summed.
+    got = np.full(len(y), float(doc["offset"] or 0.0))
+    for i, (num, den) in enumerate(zip(doc["num"], doc["den"])):
+        _, yi = scipy.signal.dlsim((num, den, doc["dt"]), u[:, i] - doc["input_level"][i])
+        got += yi[:, 0]
+    np.testing.assert_allclose(got, m.simulate(u), rtol=1e-9, atol=1e-9)
+    # python-control: the document's lists make the 1 x m system.
+    control = pytest.importorskip("control")
+    sys = control.tf([doc["num"]], [doc["den"]], doc["dt"])
+    assert (sys.noutputs, sys.ninputs) == (1, 2)
+    np.testing.assert_allclose(sys(np.exp(0.3j))[0], m.frequency_response([0.3 / (2 * np.pi * m.ts)])[0], rtol=1e-9)
+
+
+def test_the_matlab_script_and_mat_file_of_several_inputs(tmp_path):
     u, y = miso_record()
-    m = oesweep.fit(u, y, 1, 1, 1.0, delay=[1, 2])
-    with pytest.raises(oesweep.JobError, match="2 inputs"):
-        m.export()
-    with pytest.raises(oesweep.JobError, match="2 inputs"):
-        m.to_continuous()
+    m = oesweep.fit(u, y, [2, 1], [2, 1], 1.0, delay=[1, 2], offset="none")
+    script = m.export(to="matlab")
+    assert "nk = [1, 2];" in script and "b = {[" in script and "G = tf(num, den, Ts); % 1 x 2" in script
+    m.export(tmp_path / "m.mat", to="mat")
+    assert (tmp_path / "m.mat").stat().st_size > 0
+
+
+def test_each_input_has_its_own_continuous_equivalent():
+    u, y = miso_record()
+    m = oesweep.fit(u, y, [2, 1], [2, 1], 1.0, delay=[1, 2], offset="none")
+    for method in ("tustin", "zoh"):
+        cs = m.to_continuous(method)
+        assert isinstance(cs, list) and len(cs) == 2
+        for i, c in enumerate(cs):
+            assert c.method == method
+            if method == "zoh":
+                # The dead time: input i's delay less the hold's own sample.
+                assert c.delay_samples == SYSTEM[i][2] - 1
+            ts = float(m.ts)
+            for hz in (0.001, 0.01):
+                w = 2 * np.pi * hz * ts
+                g = m.frequency_response([hz])[0, i]
+                wc = 2 / ts * np.tan(w / 2) if method == "tustin" else w / ts
+                gc = np.polyval(c.num, 1j * wc) / np.polyval(c.den, 1j * wc)
+                np.testing.assert_allclose(abs(gc), abs(g), rtol=1e-9 if method == "tustin" else 1e-2)
+
+
+def test_a_several_input_run_picks_and_exports_per_input(tmp_path):
+    u, y = miso_record(n=600, noise=0.02)
+    path = tmp_path / "d.csv"
+    with open(path, "w") as fh:
+        fh.write("a,b,y\n")
+        for a, b, c in zip(u[:, 0], u[:, 1], y):
+            fh.write(f"{float(a)!r},{float(b)!r},{float(c)!r}\n")
+    job = {
+        "name": "two", "data": {"path": str(path), "u": ["a", "b"], "y": "y", "ts": 1},
+        "grid": {"nb": [[1, 2], [1, 1]], "nf": [[1, 2], [1, 1]], "k": [1.0]}, "delay": [1, 2],
+        "output": str(tmp_path / "out"),
+    }
+    run = oesweep.sweep(job, progress=False)
+    m = run.pick()
+    assert m.inputs == 2 and m.nb == [len(b) for b in m.b] and m.delay == [1, 2]
+    np.testing.assert_allclose(m.simulate(u), m.simulate([u[:, 0], u[:, 1]]))
+    doc = json.loads(m.export())
+    assert doc["b"] == m.b and len(doc["covariance"]) == len(doc["parameters"])
+    assert len(m.to_continuous("tustin")) == 2
+    page = run.report()
+    assert "report-bode-" in page.read_text() and (tmp_path / "out" / "report-heat-u2.svg").exists()
 
 
 def test_bad_several_input_calls_name_the_fault():

@@ -40,7 +40,8 @@ pub struct ExportArgs {
     /// Output folder of a finished `oesweep run` (or merge).
     pub folder: PathBuf,
     /// The model: m1, m2, a rule of selection.json's picks (rbic, evidence, ...), or NB,NF,K[,D]
-    /// (K a k of the grid, or `ls` for the least-squares fit); default: the lead rule's pick.
+    /// (K a k of the grid, or `ls` for the least-squares fit; several inputs: NB, NF, D one value
+    /// per input as 2/1, or one for all); default: the lead rule's pick.
     #[arg(long, value_name = "PICK")]
     pub pick: Option<crate::engine::PickSpec>,
     /// json: num, den, dt (python-control, scipy) with offset, delay, covariance; matlab: a script

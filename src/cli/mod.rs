@@ -124,16 +124,17 @@ fn run_export(a: &args::ExportArgs) -> Result<u8> {
     let continuous = a
         .continuous
         .map(|m| model.to_continuous(m).map_err(|e| Error::Invalid(format!("--continuous {m}: {}: {e}", model.name))))
-        .transpose()?;
+        .transpose()?
+        .unwrap_or_default();
     for n in &notes {
         eprintln!("warning: {n}");
     }
     let text = match a.to {
-        ExportFormat::Json => model.to_json_text_with(continuous.as_ref()),
-        ExportFormat::Matlab => model.to_matlab_with(continuous.as_ref()),
+        ExportFormat::Json => model.to_json_text_with(&continuous),
+        ExportFormat::Matlab => model.to_matlab_with(&continuous),
         ExportFormat::Mat => {
             let out = a.out.as_ref().expect("checked above");
-            model.write_mat_with(out, continuous.as_ref())?;
+            model.write_mat_with(out, &continuous)?;
             eprintln!("wrote {} ({})", out.display(), model.name);
             return Ok(0);
         }

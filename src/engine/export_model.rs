@@ -3,7 +3,7 @@
 
 use super::uncertainty::covariance_of;
 use crate::error::{Error, Result};
-use crate::export::model::ModelOut;
+use crate::export::model::{InputModel, ModelOut};
 use crate::reduce::Rule;
 use crate::results::{Results, read_results};
 use crate::table::{CellRow, FitKind};
@@ -15,14 +15,17 @@ pub enum PickSpec {
     /// A rule's pick (`m1`, `m2` are `paper_m1`, `paper_m2`).
     Rule(Rule),
     /// A cell of the table: nB, nF, k (None: the least-squares fit of the structure) and the
-    /// delay (None: the table's only delay).
-    Cell { nb: u32, nf: u32, k: Option<f64>, delay: Option<u32> },
+    /// delay (None: the table's only delay). Several inputs: one value per input, or one value
+    /// for every input.
+    Cell { nb: Vec<u32>, nf: Vec<u32>, k: Option<f64>, delay: Option<Vec<u32>> },
 }
 
 impl std::str::FromStr for PickSpec {
     type Err = String;
 
-    /// `m1`, `m2`, a rule name (`rbic`, ...), or `NB,NF,K[,D]` with K a k of the grid or `ls`.
+    /// `m1`, `m2`, a rule name (`rbic`, ...), or `NB,NF,K[,D]` with K a k of the grid or `ls`;
+    /// for several inputs NB, NF and D may list one value per input, separated by `/`
+    /// (`2/1,2/1,0.5,1/0`).
     fn from_str(s: &str) -> std::result::Result<Self, String> {
         let rule = |name: &str| serde_json::from_value::<Rule>(serde_json::Value::String(name.into())).ok();
         match s {
@@ -35,7 +38,8 @@ impl std::str::FromStr for PickSpec {
         }
         let bad = || {
             format!(
-                "--pick {s}: expected m1, m2, a rule ({}) or NB,NF,K[,D] with K a k of the grid or `ls`",
+                "--pick {s}: expected m1, m2, a rule ({}) or NB,NF,K[,D] with K a k of the grid or `ls` \
+                 (several inputs: NB, NF, D one value per input, as 2/1)",
                 Rule::NAMES.join(", ")
             )
         };
@@ -43,13 +47,13 @@ impl std::str::FromStr for PickSpec {
         if !(3..=4).contains(&parts.len()) {
             return Err(bad());
         }
-        let int = |p: &str| p.parse::<u32>().map_err(|_| bad());
+        let ints = |p: &str| p.split('/').map(|v| v.trim().parse::<u32>().map_err(|_| bad())).collect();
         let k = match parts[2] {
             "ls" => None,
             p => Some(p.parse::<f64>().ok().filter(|k| k.is_finite() && *k > 0.0).ok_or_else(bad)?),
         };
-        let delay = parts.get(3).map(|p| int(p)).transpose()?;
-        Ok(PickSpec::Cell { nb: int(parts[0])?, nf: int(parts[1])?, k, delay })
+        let delay = parts.get(3).map(|p| ints(p)).transpose()?;
+        Ok(PickSpec::Cell { nb: ints(parts[0])?, nf: ints(parts[1])?, k, delay })
     }
 }
 
@@ -75,17 +79,28 @@ pub fn export_model(folder: &Path, spec: Option<&PickSpec>) -> Result<(ModelOut,
         },
     };
     let estimated = res.selection.offset.is_some_and(|o| o.estimated());
-    let parameters = crate::export::model::parameter_names(row.fit.b.len(), row.fit.f.len(), estimated);
+    let structure = row.key.structure();
+    let parameters = crate::export::model::structure_parameter_names(&structure, estimated);
     let k = row.k.map_or(" (least squares)".to_string(), |k| format!(" at k = {}", crate::text::k(k)));
+    // One input's level is `input_level`; several inputs' are `input_levels`.
+    let level = |i: usize| match &res.selection.input_levels {
+        Some(levels) => levels.get(i).copied().unwrap_or(0.0),
+        None if i == 0 => res.selection.input_level.unwrap_or(0.0),
+        None => 0.0,
+    };
+    let (b, f) = (structure.split_b(&row.fit.b), structure.split_f(&row.fit.f));
+    let inputs = structure
+        .inputs()
+        .iter()
+        .enumerate()
+        .map(|(i, o)| InputModel { b: b[i].clone(), f: f[i].clone(), delay: o.delay as u32, input_level: level(i) })
+        .collect();
     let model = ModelOut {
-        name: format!("OE({},{}) delay {}{k}, {label}", row.key.nb, row.key.nf, row.key.delay),
-        delay: row.key.delay,
+        name: format!("{}{k}, {label}", row.key.label()),
         k: row.k,
         ts: res.job.ts(),
-        b: row.fit.b.clone(),
-        f: row.fit.f.clone(),
+        inputs,
         offset: row.fit.offset,
-        input_level: res.selection.input_level.unwrap_or(0.0),
         covariance,
         parameters,
         noise_variance: row.fit.sigma.map(|s| s * s),
@@ -113,14 +128,26 @@ fn chosen(res: &Results, spec: &PickSpec) -> Result<(CellRow, String, Option<Vec
         }
         PickSpec::Cell { nb, nf, k, delay } => {
             let cells_file = res.folder.join(crate::export::CELLS_FILE);
-            let delays: std::collections::BTreeSet<u32> = res.rows.iter().map(|r| r.key.delay).collect();
+            let m = res.job.m;
+            // One value serves every input; a list has one per input.
+            let per_input = |v: &[u32], flag: &str| -> Result<Vec<u32>> {
+                match v.len() {
+                    1 => Ok(vec![v[0]; m]),
+                    n if n == m => Ok(v.to_vec()),
+                    n => Err(Error::Invalid(format!("--pick: {n} values of {flag} for a model of {m} inputs"))),
+                }
+            };
+            let (nb, nf) = (per_input(nb, "NB")?, per_input(nf, "NF")?);
+            let delays: std::collections::BTreeSet<Vec<u32>> =
+                res.rows.iter().map(|r| r.key.orders().iter().map(|o| o.0).collect()).collect();
             let delay = match (delay, delays.len()) {
-                (Some(d), _) => *d,
-                (None, 1) => *delays.first().expect("one delay"),
+                (Some(d), _) => per_input(d, "D")?,
+                (None, 1) => delays.first().expect("one delay").clone(),
                 (None, _) => {
+                    let shown: Vec<String> = delays.iter().map(|d| slashed(d)).collect();
                     return Err(Error::input(
                         &cells_file,
-                        format!("the table holds delays {delays:?}: name one as NB,NF,K,D"),
+                        format!("the table holds delays {}: name one as NB,NF,K,D", list_of(&shown)),
                     ));
                 }
             };
@@ -129,14 +156,16 @@ fn chosen(res: &Results, spec: &PickSpec) -> Result<(CellRow, String, Option<Vec
                 (Some(k), Some(rk)) => r.key.kind == FitKind::Huber && (rk - k).abs() <= 1e-9 * k.abs().max(1.0),
                 (Some(_), None) => false,
             };
-            let row = res
-                .rows
-                .iter()
-                .find(|r| r.key.nb == *nb && r.key.nf == *nf && r.key.delay == delay && same_k(r))
-                .ok_or_else(|| {
-                    let k = k.map_or("ls".to_string(), |k| k.to_string());
-                    Error::input(&cells_file, format!("no row OE({nb},{nf}) delay {delay} k {k}"))
-                })?;
+            let orders: Vec<(u32, u32, u32)> = (0..m).map(|i| (delay[i], nb[i], nf[i])).collect();
+            let row = res.rows.iter().find(|r| r.key.orders() == orders && same_k(r)).ok_or_else(|| {
+                let k = k.map_or("ls".to_string(), |k| k.to_string());
+                let what = if m == 1 {
+                    format!("OE({},{}) delay {}", nb[0], nf[0], delay[0])
+                } else {
+                    format!("nB {}, nF {}, delay {}", slashed(&nb), slashed(&nf), slashed(&delay))
+                };
+                Error::input(&cells_file, format!("no row {what} k {k}"))
+            })?;
             if !row.ok() {
                 return Err(Error::input(
                     &cells_file,
@@ -146,4 +175,14 @@ fn chosen(res: &Results, spec: &PickSpec) -> Result<(CellRow, String, Option<Vec
             Ok((row.clone(), "chosen by cell".to_string(), None))
         }
     }
+}
+
+/// `1/0/2`: one value per input (one input: the value).
+fn slashed(v: &[u32]) -> String {
+    v.iter().map(u32::to_string).collect::<Vec<_>>().join("/")
+}
+
+/// `{0, 1}` as the one-input message has always written a set of delays.
+fn list_of(items: &[String]) -> String {
+    format!("{{{}}}", items.join(", "))
 }

@@ -8,6 +8,8 @@
 
 pub mod continuous;
 pub mod json;
+mod mat;
+mod matlab;
 pub mod model;
 pub mod parquet;
 

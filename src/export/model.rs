@@ -1,50 +1,74 @@
 //! One chosen model in the forms the next tool takes (`oesweep export`): JSON with `num`, `den`
 //! and `dt` as python-control's `tf` and `scipy.signal.dlti` take them, a MATLAB/Octave script
-//! that builds the `tf` (and the `idpoly` where the System Identification Toolbox is present),
-//! and a MAT-file (level 5, MATLAB 7 format, written by the `matrw` crate).
+//! that builds the `tf` (and the `idpoly` where the System Identification Toolbox is present;
+//! [`super::matlab`]), and a MAT-file (level 5, MATLAB 7 format, [`super::mat`]).
 //!
-//! The model is `y_t = q^-d B(q^-1)/F(q^-1) (u_t - u0) + offset`. As a transfer function in z
-//! with both polynomials in descending powers of z and of one length L = max(d + nB, nF + 1):
+//! The model is `y_t = sum_i q^-d_i B_i(q^-1)/F_i(q^-1) (u_i,t - u0_i) + offset` with one
+//! [`InputModel`] per input (one input: `q^-d B/F (u_t - u0) + offset`). Each input's filter as
+//! a transfer function in z, with both polynomials in descending powers of z and of one length
+//! L = max(d + nB, nF + 1):
 //!
 //! ```text
 //! num = [0 x d, b_1, ..., b_nB, 0 ...]       den = [1, f_1, ..., f_nF, 0 ...]
 //! ```
 //!
 //! so that `num(z)/den(z) = z^-d B(z^-1)/F(z^-1)` (the common factor z^-(L-1) cancels).
-//! With `--continuous`, each form also carries the model's continuous-time equivalent
-//! ([`super::continuous`]).
+//! With `--continuous`, each form also carries each input's continuous-time equivalent
+//! ([`super::continuous`]), every input's filter converted on its own.
+//!
+//! The documents follow `selection.json`'s rule: a one-input model's fields are scalars and flat
+//! lists, a several-input model's `num`, `den`, `b`, `f`, `delay`, `input_level` (and
+//! `continuous`) hold one entry per input.
 
-use super::continuous::{self, ContinuousModel, Method, NoEquivalent};
-use crate::error::{Error, Result};
-use std::fmt::Write;
-use std::path::Path;
+use super::continuous::{self, ContinuousModel, Method};
+
+/// One input's part of a model: `q^-delay B/F (u - input_level)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InputModel {
+    pub b: Vec<f64>,
+    pub f: Vec<f64>,
+    pub delay: u32,
+    /// The input level u0 taken out before the model (0 without one).
+    pub input_level: f64,
+}
+
+impl InputModel {
+    /// `num`, `den` in descending powers of z, of equal length (module docs).
+    pub fn num_den(&self) -> (Vec<f64>, Vec<f64>) {
+        let d = self.delay as usize;
+        let len = (d + self.b.len()).max(self.f.len() + 1);
+        let mut num = vec![0.0; len];
+        num[d..d + self.b.len()].copy_from_slice(&self.b);
+        let mut den = vec![0.0; len];
+        den[0] = 1.0;
+        den[1..=self.f.len()].copy_from_slice(&self.f);
+        (num, den)
+    }
+}
 
 /// A model as it leaves the tool.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModelOut {
     /// What the model is and which rule picked it, e.g. "OE(9,9) delay 1 at k = 0.05 (paper_m2)".
     pub name: String,
-    pub delay: u32,
     /// Null for a least-squares model.
     pub k: Option<f64>,
     pub ts: f64,
-    pub b: Vec<f64>,
-    pub f: Vec<f64>,
+    /// Every input's filter, in the job's order of the inputs (one for a single-input model).
+    pub inputs: Vec<InputModel>,
     /// The output offset in the data's units (None: the model has none).
     pub offset: Option<f64>,
-    /// The input level u0 taken out before the model (0 without one).
-    pub input_level: f64,
-    /// Row-major covariance over `[b, f]`, plus the offset when it was estimated (`dim` says).
+    /// Row-major covariance over theta `[b_1, f_1, ..., b_m, f_m]`, plus the offset when it was
+    /// estimated (`parameters` names the rows).
     pub covariance: Option<Vec<f64>>,
-    /// Names of the covariance's rows: b1.., f1.., and "offset" when estimated.
+    /// Names of the covariance's rows: b1.., f1.. (several inputs: u1.b1.., u1.f1.., u2.b1..),
+    /// and "offset" when estimated.
     pub parameters: Vec<String>,
     /// The variance of the noise the model leaves (sigma^2 of the least-squares fit of its
     /// structure): MATLAB's `idpoly` wants one.
     pub noise_variance: Option<f64>,
 }
 
-/// Names of a model's parameters in the covariance's order: b1.., f1.., and "offset" when
-/// it was estimated.
 /// The names of theta's entries for a structure: `b1.., f1.., offset` for one input, and for
 /// several `u1.b1, .., u1.f1, .., u2.b1, .., offset` (input i's coefficients prefixed `u<i>.`).
 pub fn structure_parameter_names(s: &crate::oe::Structure, offset: bool) -> Vec<String> {
@@ -61,6 +85,8 @@ pub fn structure_parameter_names(s: &crate::oe::Structure, offset: bool) -> Vec<
     names
 }
 
+/// Names of a model's parameters in the covariance's order: b1.., f1.., and "offset" when
+/// it was estimated.
 pub fn parameter_names(nb: usize, nf: usize, offset: bool) -> Vec<String> {
     let mut names: Vec<String> = (1..=nb).map(|i| format!("b{i}")).collect();
     names.extend((1..=nf).map(|j| format!("f{j}")));
@@ -70,9 +96,51 @@ pub fn parameter_names(nb: usize, nf: usize, offset: bool) -> Vec<String> {
     names
 }
 
+/// A field of one value for a one-input model and a list (one per input) for several.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(untagged)]
+enum Each<T> {
+    One(T),
+    Several(Vec<T>),
+}
+
+impl<T> Each<T> {
+    /// One value for one input, a list for several.
+    fn of(mut items: Vec<T>) -> Self {
+        if items.len() == 1 { Each::One(items.remove(0)) } else { Each::Several(items) }
+    }
+
+    /// The values for `m` inputs: a list must have `m` entries; one value serves one input (or
+    /// every input, where `shared`).
+    fn for_inputs(self, m: usize, field: &str, shared: bool) -> std::result::Result<Vec<T>, String>
+    where
+        T: Clone,
+    {
+        match self {
+            Each::One(v) if m == 1 || shared => Ok(vec![v; m]),
+            Each::One(_) => Err(format!("'{field}' is one input's: a model of {m} inputs has one entry per input")),
+            Each::Several(v) if v.len() == m => Ok(v),
+            Each::Several(v) => Err(format!("'{field}' has {} entries for {m} inputs", v.len())),
+        }
+    }
+
+    fn len(&self) -> usize {
+        match self {
+            Each::One(_) => 1,
+            Each::Several(v) => v.len(),
+        }
+    }
+}
+
 impl ModelOut {
+    /// Number of inputs m.
+    pub fn m(&self) -> usize {
+        self.inputs.len()
+    }
+
     /// The model of a JSON document of [`Self::to_json_text`]'s form (the Python package's
-    /// `Model.export`): `num`, `den` are not needed, `b`, `f`, `delay` and `dt` are.
+    /// `Model.export`): `num`, `den` are not needed, `b`, `f`, `delay` and `dt` are (one entry per
+    /// input for several inputs, as `delay` says).
     pub fn from_json_text(text: &str) -> std::result::Result<ModelOut, String> {
         let d: DocIn = serde_json::from_str(text).map_err(|e| format!("not a model: {e}"))?;
         let n = d.parameters.len();
@@ -81,40 +149,50 @@ impl ModelOut {
             Some(_) => return Err(format!("the covariance is not {n} x {n}, one row per parameter")),
             None => None,
         };
+        let m = d.delay.len();
+        if m == 0 {
+            return Err("'delay' is an empty list: give one per input".into());
+        }
+        let (b, f) = (d.b.for_inputs(m, "b", false)?, d.f.for_inputs(m, "f", false)?);
+        let (delay, level) =
+            (d.delay.for_inputs(m, "delay", false)?, d.input_level.for_inputs(m, "input_level", true)?);
+        let inputs = (0..m)
+            .map(|i| InputModel { b: b[i].clone(), f: f[i].clone(), delay: delay[i], input_level: level[i] })
+            .collect();
         Ok(ModelOut {
             name: d.model,
-            delay: d.delay,
             k: d.k,
             ts: d.dt,
-            b: d.b,
-            f: d.f,
+            inputs,
             offset: d.offset,
-            input_level: d.input_level,
             covariance,
             parameters: d.parameters,
             noise_variance: d.noise_variance,
         })
     }
 
-    /// `num`, `den` in descending powers of z, of equal length (module docs).
-    pub fn num_den(&self) -> (Vec<f64>, Vec<f64>) {
-        let d = self.delay as usize;
-        let len = (d + self.b.len()).max(self.f.len() + 1);
-        let mut num = vec![0.0; len];
-        num[d..d + self.b.len()].copy_from_slice(&self.b);
-        let mut den = vec![0.0; len];
-        den[0] = 1.0;
-        den[1..=self.f.len()].copy_from_slice(&self.f);
-        (num, den)
+    /// Every input's `num`, `den` ([`InputModel::num_den`]).
+    pub fn num_den(&self) -> Vec<(Vec<f64>, Vec<f64>)> {
+        self.inputs.iter().map(InputModel::num_den).collect()
     }
 
-    /// The continuous-time equivalent by `method` ([`super::continuous`]).
-    pub fn to_continuous(&self, method: Method) -> std::result::Result<ContinuousModel, NoEquivalent> {
-        let (num, den) = self.num_den();
-        continuous::to_continuous(&num, &den, self.ts, method)
+    /// Every input's continuous-time equivalent by `method` ([`super::continuous`]), each
+    /// input's filter converted on its own. The error says why one has none (naming the input
+    /// of a several-input model).
+    pub fn to_continuous(&self, method: Method) -> std::result::Result<Vec<ContinuousModel>, String> {
+        let several = self.m() > 1;
+        self.inputs
+            .iter()
+            .enumerate()
+            .map(|(i, part)| {
+                let (num, den) = part.num_den();
+                continuous::to_continuous(&num, &den, self.ts, method)
+                    .map_err(|e| if several { format!("input {}: {e}", i + 1) } else { e.to_string() })
+            })
+            .collect()
     }
 
-    fn covariance_rows(&self) -> Option<Vec<Vec<f64>>> {
+    pub(super) fn covariance_rows(&self) -> Option<Vec<Vec<f64>>> {
         let n = self.parameters.len();
         self.covariance.as_ref().filter(|c| c.len() == n * n).map(|c| c.chunks(n).map(<[f64]>::to_vec).collect())
     }
@@ -122,13 +200,15 @@ impl ModelOut {
     /// The JSON document of `oesweep export --to json` as text, its fields in the order of
     /// [`Doc`] (num, den and dt first).
     pub fn to_json_text(&self) -> String {
-        self.to_json_text_with(None)
+        self.to_json_text_with(&[])
     }
 
-    /// [`Self::to_json_text`] with the continuous equivalent as a `continuous` object (`method`,
-    /// `num`, `den`, `input_delay`, `delay_samples`, `zeros` and `poles` as `[re, im]` pairs,
-    /// `gain`, `state_space` with `a` by rows, `b`, `c`, `d`) after the discrete fields.
-    pub fn to_json_text_with(&self, continuous: Option<&ContinuousModel>) -> String {
+    /// [`Self::to_json_text`] with each input's continuous equivalent as a `continuous` object
+    /// (`method`, `num`, `den`, `input_delay`, `delay_samples`, `zeros` and `poles` as `[re, im]`
+    /// pairs, `gain`, `state_space` with `a` by rows, `b`, `c`, `d`) after the discrete fields;
+    /// a list of one such object per input for several inputs. None when `continuous` is empty.
+    pub fn to_json_text_with(&self, continuous: &[ContinuousModel]) -> String {
+        let continuous = (!continuous.is_empty()).then(|| Each::of(continuous.iter().collect()));
         let doc = Doc { continuous, ..self.doc() };
         serde_json::to_string_pretty(&doc).expect("JSON of numbers") + "\n"
     }
@@ -139,167 +219,24 @@ impl ModelOut {
     }
 
     fn doc(&self) -> Doc<'_> {
-        let (num, den) = self.num_den();
+        let (num, den) = self.num_den().into_iter().unzip();
+        let each = |f: fn(&InputModel) -> &[f64]| Each::of(self.inputs.iter().map(f).collect());
         Doc {
             model: &self.name,
-            num,
-            den,
+            num: Each::of(num),
+            den: Each::of(den),
             dt: self.ts,
-            b: &self.b,
-            f: &self.f,
-            delay: self.delay,
+            b: each(|p| &p.b),
+            f: each(|p| &p.f),
+            delay: Each::of(self.inputs.iter().map(|p| p.delay).collect()),
             k: self.k,
             offset: self.offset,
-            input_level: self.input_level,
+            input_level: Each::of(self.inputs.iter().map(|p| p.input_level).collect()),
             parameters: &self.parameters,
             covariance: self.covariance_rows(),
             noise_variance: self.noise_variance,
             continuous: None,
         }
-    }
-
-    /// A MATLAB/Octave script that defines the coefficients and builds `G = tf(num, den, Ts)`,
-    /// and `sys = idpoly(...)` with its covariance where the System Identification Toolbox is
-    /// installed.
-    pub fn to_matlab(&self) -> String {
-        self.to_matlab_with(None)
-    }
-
-    /// [`Self::to_matlab`] that also builds the continuous equivalent as `Gc` (a `tf`) and `Gz`
-    /// (a `zpk`, well-conditioned), with its dead time as `InputDelay` in MATLAB (Octave's `tf`
-    /// and `zpk` have none, so there `input_delay` stands beside them).
-    pub fn to_matlab_with(&self, continuous: Option<&ContinuousModel>) -> String {
-        let (num, den) = self.num_den();
-        let row = |v: &[f64]| v.iter().map(|x| matlab_number(*x)).collect::<Vec<_>>().join(", ");
-        let mut s = String::new();
-        let _ = writeln!(s, "% {} from oesweep", self.name);
-        let _ =
-            writeln!(s, "% y(t) = q^-nk B(q)/F(q) (u(t) - u0) + offset, B = b1 + b2 q^-1 + ..., F = 1 + f1 q^-1 + ...");
-        let _ = writeln!(s, "Ts = {};", matlab_number(self.ts));
-        let _ = writeln!(s, "nk = {};", self.delay);
-        let _ = writeln!(s, "b = [{}];", row(&self.b));
-        let _ = writeln!(s, "F = [1, {}];", row(&self.f));
-        let _ = writeln!(s, "u0 = {};", matlab_number(self.input_level));
-        let _ = writeln!(s, "offset = {};", self.offset.map_or("0".to_string(), matlab_number));
-        match self.covariance_rows() {
-            Some(rows) => {
-                let rows: Vec<String> = rows.iter().map(|r| row(r)).collect();
-                let _ = writeln!(s, "% over [{}]", self.parameters.join(", "));
-                let _ = writeln!(s, "covariance = [{}];", rows.join("; ...\n  "));
-            }
-            None => {
-                let _ = writeln!(s, "covariance = []; % not known");
-            }
-        }
-        let _ = writeln!(s, "num = [{}];", row(&num));
-        let _ = writeln!(s, "den = [{}];", row(&den));
-        let _ = writeln!(s, "B = [zeros(1, nk), b];");
-        let _ = writeln!(s, "if exist('OCTAVE_VERSION', 'builtin')");
-        let _ = writeln!(s, "  pkg load control");
-        let _ = writeln!(s, "end");
-        let _ = writeln!(s, "G = tf(num, den, Ts);");
-        let _ = writeln!(s, "if exist('idpoly')");
-        let _ = writeln!(
-            s,
-            "  sys = idpoly(1, B, 1, 1, F, {}, Ts);",
-            self.noise_variance.map_or("1".to_string(), matlab_number)
-        );
-        let _ = writeln!(s, "  sys.Structure.B.Free(1:nk) = false;");
-        let np = self.b.len() + self.f.len();
-        let _ = writeln!(s, "  if ~isempty(covariance)");
-        let _ = writeln!(s, "    sys = setcov(sys, covariance(1:{np}, 1:{np}));");
-        let _ = writeln!(s, "  end");
-        let _ = writeln!(s, "end");
-        if let Some(c) = continuous {
-            let _ =
-                writeln!(s, "% continuous-time equivalent ({}): Gc(s) = exp(-input_delay s) numc(s)/denc(s)", c.method);
-            let _ = writeln!(s, "numc = [{}];", row(&c.num));
-            let _ = writeln!(s, "denc = [{}];", row(&c.den));
-            let _ =
-                writeln!(s, "input_delay = {}; % seconds, {} samples", matlab_number(c.input_delay), c.delay_samples);
-            let complex_row = |v: &[(f64, f64)]| v.iter().map(|&z| matlab_complex(z)).collect::<Vec<_>>().join(", ");
-            let _ =
-                writeln!(s, "% the same as zeros, poles (rad/s) and gain: well-conditioned where numc, denc are not");
-            let _ = writeln!(s, "% (high orders, short sample times; docs/METHOD.md 18): prefer Gz");
-            let _ = writeln!(s, "zc = [{}];", complex_row(&c.zeros));
-            let _ = writeln!(s, "pc = [{}];", complex_row(&c.poles));
-            let _ = writeln!(s, "kc = {};", matlab_number(c.gain));
-            let _ = writeln!(s, "if exist('OCTAVE_VERSION', 'builtin')");
-            let _ = writeln!(s, "  Gc = tf(numc, denc); % Octave's tf has no dead time");
-            let _ = writeln!(s, "  Gz = zpk(zc, pc, kc);");
-            let _ = writeln!(s, "else");
-            let _ = writeln!(s, "  Gc = tf(numc, denc, 'InputDelay', input_delay);");
-            let _ = writeln!(s, "  Gz = zpk(zc, pc, kc, 'InputDelay', input_delay);");
-            let _ = writeln!(s, "end");
-        }
-        s
-    }
-
-    /// Write the MAT-file of `oesweep export --to mat`: `num`, `den`, `Ts`, `delay`, `b`, `B`
-    /// (with the delay's leading zeros), `F` (with its leading 1), `offset` (NaN: none), `u0`
-    /// and `covariance` (empty when not known).
-    pub fn write_mat(&self, path: &Path) -> Result<()> {
-        self.write_mat_with(path, None)
-    }
-
-    /// [`Self::write_mat`] with the continuous equivalent as `numc`, `denc` (descending powers
-    /// of s), `zc`, `pc` (zeros and poles in rad/s, one a row: real and imaginary part), `kc`
-    /// (gain) and `input_delay` (seconds).
-    pub fn write_mat_with(&self, path: &Path, continuous: Option<&ContinuousModel>) -> Result<()> {
-        use matrw::{MatFile, MatVariable, MatlabType, NumericArray};
-        let (num, den) = self.num_den();
-        let array = |dim: Vec<usize>, v: Vec<f64>| -> Result<MatVariable> {
-            NumericArray::new(dim, MatlabType::from(v), None)
-                .map(MatVariable::NumericArray)
-                .map_err(|e| Error::output(path, format!("cannot build a MAT variable: {e}")))
-        };
-        let row = |v: &[f64]| array(vec![1, v.len()], v.to_vec());
-        let scalar = |v: f64| array(vec![1, 1], vec![v]);
-        let mut b_full = vec![0.0; self.delay as usize];
-        b_full.extend_from_slice(&self.b);
-        let f_full: Vec<f64> = std::iter::once(1.0).chain(self.f.iter().copied()).collect();
-        let n = self.parameters.len();
-        let mut mat = MatFile::new();
-        mat.insert("num", row(&num)?);
-        mat.insert("den", row(&den)?);
-        mat.insert("Ts", scalar(self.ts)?);
-        mat.insert("delay", scalar(self.delay as f64)?);
-        mat.insert("b", row(&self.b)?);
-        mat.insert("B", row(&b_full)?);
-        mat.insert("F", row(&f_full)?);
-        mat.insert("offset", scalar(self.offset.unwrap_or(f64::NAN))?);
-        mat.insert("u0", scalar(self.input_level)?);
-        // Symmetric, so row-major and MATLAB's column-major order agree.
-        let cov = match &self.covariance {
-            Some(c) if c.len() == n * n => array(vec![n, n], c.clone())?,
-            _ => array(vec![0, 0], Vec::new())?,
-        };
-        mat.insert("covariance", cov);
-        if let Some(c) = continuous {
-            mat.insert("numc", row(&c.num)?);
-            mat.insert("denc", row(&c.den)?);
-            // Complex numbers as two columns, real and imaginary part: matrw stores each part of
-            // a complex array in the smallest type that holds it and then miscounts the bytes.
-            let columns = |v: &[(f64, f64)]| {
-                let (mut re, im): (Vec<f64>, Vec<f64>) = v.iter().copied().unzip();
-                re.extend(im);
-                array(vec![v.len(), 2], re)
-            };
-            mat.insert("zc", columns(&c.zeros)?);
-            mat.insert("pc", columns(&c.poles)?);
-            mat.insert("kc", scalar(c.gain)?);
-            mat.insert("input_delay", scalar(c.input_delay)?);
-        }
-        // matrw writes to a path: a temporary sibling renamed into place, as every result file.
-        let tmp = super::temporary_path(path)?;
-        let tmp_str = tmp.to_str().ok_or_else(|| Error::output(path, "the path is not UTF-8"))?;
-        let written = matrw::save_matfile_v7(tmp_str, mat, false)
-            .map_err(|e| e.to_string())
-            .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| e.to_string()));
-        written.map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            Error::output(path, format!("cannot write the MAT-file: {e}"))
-        })
     }
 }
 
@@ -307,20 +244,20 @@ impl ModelOut {
 #[derive(serde::Serialize)]
 struct Doc<'a> {
     model: &'a str,
-    num: Vec<f64>,
-    den: Vec<f64>,
+    num: Each<Vec<f64>>,
+    den: Each<Vec<f64>>,
     dt: f64,
-    b: &'a [f64],
-    f: &'a [f64],
-    delay: u32,
+    b: Each<&'a [f64]>,
+    f: Each<&'a [f64]>,
+    delay: Each<u32>,
     k: Option<f64>,
     offset: Option<f64>,
-    input_level: f64,
+    input_level: Each<f64>,
     parameters: &'a [String],
     covariance: Option<Vec<Vec<f64>>>,
     noise_variance: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    continuous: Option<&'a ContinuousModel>,
+    continuous: Option<Each<&'a ContinuousModel>>,
 }
 
 /// What [`ModelOut::from_json_text`] reads of a [`Doc`].
@@ -329,15 +266,15 @@ struct DocIn {
     #[serde(default)]
     model: String,
     dt: f64,
-    b: Vec<f64>,
-    f: Vec<f64>,
-    delay: u32,
+    b: Each<Vec<f64>>,
+    f: Each<Vec<f64>>,
+    delay: Each<u32>,
     #[serde(default)]
     k: Option<f64>,
     #[serde(default)]
     offset: Option<f64>,
-    #[serde(default)]
-    input_level: f64,
+    #[serde(default = "no_level")]
+    input_level: Each<f64>,
     #[serde(default)]
     parameters: Vec<String>,
     #[serde(default)]
@@ -346,43 +283,38 @@ struct DocIn {
     noise_variance: Option<f64>,
 }
 
-/// `re+imi` as MATLAB reads a complex number inside brackets (no spaces), `re` when `im` is zero.
-fn matlab_complex((re, im): (f64, f64)) -> String {
-    if im == 0.0 {
-        matlab_number(re)
-    } else {
-        format!("{}{}{}i", matlab_number(re), if im < 0.0 { "-" } else { "+" }, matlab_number(im.abs()))
-    }
-}
-
-/// Shortest text that reads back as exactly `x` in MATLAB (NaN and Inf by their names).
-fn matlab_number(x: f64) -> String {
-    if x.is_nan() {
-        "NaN".into()
-    } else if x.is_infinite() {
-        if x > 0.0 { "Inf".into() } else { "-Inf".into() }
-    } else {
-        format!("{x:e}").replace("e0", "")
-    }
+fn no_level() -> Each<f64> {
+    Each::One(0.0)
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn model() -> ModelOut {
+    pub(crate) fn model() -> ModelOut {
         ModelOut {
             name: "OE(2,1) delay 2 at k = 0.5 (test)".into(),
-            delay: 2,
             k: Some(0.5),
             ts: 1e-3,
-            b: vec![0.5, -0.25],
-            f: vec![-0.8],
+            inputs: vec![InputModel { b: vec![0.5, -0.25], f: vec![-0.8], delay: 2, input_level: 0.25 }],
             offset: Some(1.5),
-            input_level: 0.25,
             covariance: Some(vec![4.0, 1.0, 0.5, 0.1, 1.0, 3.0, 0.2, 0.0, 0.5, 0.2, 2.0, 0.0, 0.1, 0.0, 0.0, 1.0]),
             parameters: vec!["b1".into(), "b2".into(), "f1".into(), "offset".into()],
             noise_variance: Some(0.01),
+        }
+    }
+
+    /// Two inputs: OE(2,1) delay 2 and OE(1,2) delay 0, without a covariance.
+    pub(crate) fn two_inputs() -> ModelOut {
+        ModelOut {
+            name: "OE(2,1 d2; 1,2 d0) at k = 0.5 (test)".into(),
+            inputs: vec![
+                InputModel { b: vec![0.5, -0.25], f: vec![-0.8], delay: 2, input_level: 0.25 },
+                InputModel { b: vec![1.5], f: vec![-1.2, 0.5], delay: 0, input_level: -1.0 },
+            ],
+            covariance: None,
+            parameters: ["u1.b1", "u1.b2", "u1.f1", "u2.b1", "u2.f1", "u2.f2"].map(String::from).to_vec(),
+            ..model()
         }
     }
 
@@ -399,10 +331,57 @@ mod tests {
         assert!(ModelOut::from_json_text("{}").unwrap_err().starts_with("not a model"));
     }
 
+    /// A several-input document has one entry per input in `num`, `den`, `b`, `f`, `delay`
+    /// and `input_level`, and reads back; a list that does not match the inputs is refused.
+    #[test]
+    fn a_several_input_document_has_one_entry_per_input_and_reads_back() {
+        let m = two_inputs();
+        let j = m.to_json();
+        assert_eq!(j["num"], serde_json::json!([[0.0, 0.0, 0.5, -0.25], [1.5, 0.0, 0.0]]));
+        assert_eq!(j["den"], serde_json::json!([[1.0, -0.8, 0.0, 0.0], [1.0, -1.2, 0.5]]));
+        assert_eq!(j["b"], serde_json::json!([[0.5, -0.25], [1.5]]));
+        assert_eq!(j["delay"], serde_json::json!([2, 0]));
+        assert_eq!(j["input_level"], serde_json::json!([0.25, -1.0]));
+        assert_eq!(ModelOut::from_json_text(&m.to_json_text()).unwrap(), m);
+        let mut bad = j.clone();
+        bad["b"] = serde_json::json!([0.5, -0.25]);
+        let err = ModelOut::from_json_text(&bad.to_string()).unwrap_err();
+        assert!(err.contains("'b' is one input's: a model of 2 inputs"), "{err}");
+        let mut bad = j.clone();
+        bad["f"] = serde_json::json!([[-0.8], [-1.2, 0.5], [0.1]]);
+        assert!(ModelOut::from_json_text(&bad.to_string()).unwrap_err().contains("'f' has 3 entries for 2 inputs"));
+        // One level serves every input.
+        let mut shared = j;
+        shared["input_level"] = serde_json::json!(0.5);
+        let back = ModelOut::from_json_text(&shared.to_string()).unwrap();
+        assert_eq!([back.inputs[0].input_level, back.inputs[1].input_level], [0.5, 0.5]);
+    }
+
+    /// Each input's continuous equivalent is its own filter's; a several-input failure names
+    /// the input.
+    #[test]
+    fn each_input_is_converted_on_its_own() {
+        let m = two_inputs();
+        let c = m.to_continuous(Method::Tustin).unwrap();
+        assert_eq!(c.len(), 2);
+        for (part, got) in m.inputs.iter().zip(&c) {
+            let (num, den) = part.num_den();
+            assert_eq!(got, &continuous::to_continuous(&num, &den, m.ts, Method::Tustin).unwrap());
+        }
+        let mut neg = m.clone();
+        neg.inputs[1].f = vec![0.5];
+        let err = neg.to_continuous(Method::Zoh).unwrap_err();
+        assert!(err.starts_with("input 2: "), "{err}");
+        let text = m.to_json_text_with(&c);
+        let back: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(back["continuous"].as_array().map(Vec::len), Some(2));
+        assert_eq!(back["continuous"][1]["method"], "tustin");
+    }
+
     #[test]
     fn num_and_den_simulate_like_the_model() {
         let m = model();
-        let (num, den) = m.num_den();
+        let (num, den) = m.inputs[0].num_den();
         assert_eq!(num, vec![0.0, 0.0, 0.5, -0.25]);
         assert_eq!(den, vec![1.0, -0.8, 0.0, 0.0]);
         // den(q) y = num(q) u as a difference equation (scipy's lfilter) against oe::simulate.
@@ -422,22 +401,9 @@ mod tests {
             }
             y[t] = v;
         }
-        let want = crate::oe::simulate_vec(&m.b, &m.f, 2, &u);
+        let want = crate::oe::simulate_vec(&m.inputs[0].b, &m.inputs[0].f, 2, &u);
         for (a, b) in y.iter().zip(&want) {
             assert!((a - b).abs() < 1e-12);
         }
-    }
-
-    #[test]
-    fn numbers_round_trip_through_the_script() {
-        for x in [0.1, 1.0 / 3.0, -2.5e-17, 123456.789, 1e300] {
-            assert_eq!(matlab_number(x).parse::<f64>().unwrap(), x, "{}", matlab_number(x));
-        }
-        let s = model().to_matlab();
-        assert!(s.contains("G = tf(num, den, Ts);") && s.contains("nk = 2;"), "{s}");
-        assert!(s.contains("covariance = [4, 1, 5e-1, 1e-1; ...\n  1, 3,"), "{s}");
-        let j = model().to_json();
-        assert_eq!(j["covariance"][1][1], 3.0);
-        assert_eq!(j["dt"], 1e-3);
     }
 }

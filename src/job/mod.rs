@@ -329,21 +329,6 @@ impl ValidJob {
     pub fn n_cells(&self) -> usize {
         self.n_pairs() * self.ks.len()
     }
-    /// Issue 46, landing 2: the job, readers and checks take several inputs, the sweep does
-    /// not yet. The one refusal of the sweep's entry points (`plan`, `run`, shards and `slurm`
-    /// through [`crate::engine::prepare`], `merge`, and the report and export of a results
-    /// folder): delete it, and its calls, when the sweep fits several inputs.
-    pub fn single_input_only(&self, what: &str) -> Result<()> {
-        if self.m == 1 {
-            return Ok(());
-        }
-        Err(Error::Invalid(format!(
-            "job '{}': {} inputs: {what} is one input's so far (issue 46)",
-            self.file.display(),
-            self.m
-        )))
-    }
-
     pub fn output(&self) -> &Path {
         &self.job.output
     }

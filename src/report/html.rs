@@ -154,14 +154,12 @@ pub fn picks_table(rows: &[PickRow<'_>], basis_column: &str) -> String {
         let tests = format!("{} / {}", opt(r.evidence.resid_white_p, 3), opt(r.evidence.resid_indep_p, 3));
         let _ = writeln!(
             h,
-            "<tr class=\"{}\"><td class=\"l\">{}</td><td class=\"l\">OE({},{}), d = {}</td><td>{}</td><td>{}</td>\
+            "<tr class=\"{}\"><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td>\
              <td>{}</td><td>{}</td><td>{fits}</td><td>{}</td><td class=\"l\">{solver}</td><td>{}</td><td>{tests}</td>\
              <td class=\"l\">{}</td></tr>",
             p.class,
             p.name,
-            r.key.nb,
-            r.key.nf,
-            r.key.delay,
+            orders(&r.key),
             opt(r.k, 4),
             opt(r.fit.gamma, 4),
             opt(r.fit.criterion, 4),
@@ -179,6 +177,12 @@ pub fn picks_table(rows: &[PickRow<'_>], basis_column: &str) -> String {
         esc(basis_column)
     );
     h
+}
+
+/// A row's orders as the tables show them: `OE(nB,nF), d = D` for one input, the structure's
+/// label (`OE(2,1 d1; 1,1 d0)`) for several.
+pub fn orders(key: &crate::table::RowKey) -> String {
+    if key.m() == 1 { format!("OE({},{}), d = {}", key.nb, key.nf, key.delay) } else { key.label() }
 }
 
 /// Significance level of the residual tests' flags.
@@ -231,10 +235,9 @@ pub fn candidates_table(candidates: &[Candidate], basis_column: &str, limit: usi
     for (i, c) in candidates.iter().take(limit).enumerate() {
         let _ = writeln!(
             h,
-            "<tr><td>{}</td><td class=\"l\">OE({},{})</td><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.3}</td></tr>",
+            "<tr><td>{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.3}</td></tr>",
             i + 1,
-            c.key.nb,
-            c.key.nf,
+            c.key.short_label(),
             super::plot::short(c.k()),
             sig(c.criterion(), 4),
             100.0 * c.l1c(),

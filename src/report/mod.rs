@@ -38,6 +38,11 @@
 //!
 //! 8. **Every pick rule and the information criteria against nB + nF** (`rules.rs`).
 //!
+//! A model of several inputs (`inputs.rs`) has figures 1-3 per input, on the input's slice of
+//! the grid through the lead pick (the other inputs at its orders); figure 4 is left out; figure
+//! 5 is one per pick and input without a measured estimate (no per-input spectral estimate of a
+//! several-input record exists yet); the residuals' cross-correlation is one per input.
+//!
 //! and tables: the picks with gamma, sigma, W, L1C, fits, pole radius and convergence, the
 //! least-squares fits of the same orders, b and f (paper Tables 2, 3), the reducer's rule
 //! sentence and best candidates, every rule's pick, and links to the result files.
@@ -53,7 +58,9 @@
 mod bootstrap;
 mod figures;
 mod html;
+mod inputs;
 pub(crate) mod plot;
+mod response;
 mod rules;
 
 use crate::data::Record;
@@ -92,11 +99,16 @@ struct Review {
     /// The input level the run took out of the records (`selection.json`'s `input_level`;
     /// files of versions before it ran without levels).
     u0: f64,
+    /// Every input's level (one input: `[u0]`; several: `selection.json`'s `input_levels`).
+    u0s: Vec<f64>,
 }
 
 impl Review {
     /// A table row's model output on a record, in the data's units.
     fn output_of_row(&self, r: &CellRow, rec: &Record, is: InitialState) -> Vec<f64> {
+        if r.key.m() > 1 {
+            return inputs::output_of_row(r, rec, &self.u0s, is);
+        }
         // Each experiment of a list from its own initial state (METHOD.md 16).
         let mut out = Vec::with_capacity(rec.len());
         for e in rec.experiments() {
@@ -131,7 +143,13 @@ impl Review {
         }
         let (est, val) = crate::job::read_records(&job.job.data, job.job.validation.as_ref())?;
         let u0 = selection.input_level.unwrap_or(0.0);
-        Ok(Review { folder, rows, selection, job, version, est, val, u0 })
+        let u0s = selection.input_levels.clone().unwrap_or_else(|| vec![u0; job.m]);
+        Ok(Review { folder, rows, selection, job, version, est, val, u0, u0s })
+    }
+
+    /// Input i's name (its column in the record).
+    fn input_name(&self, i: usize) -> String {
+        self.est.u_names.get(i).cloned().unwrap_or_else(|| format!("u{}", i + 1))
     }
 
     fn ts(&self) -> f64 {
@@ -150,6 +168,7 @@ impl Review {
         self.rows.iter().find(|r| {
             r.key.kind == FitKind::Huber
                 && (r.key.nb, r.key.nf, r.key.delay) == (c.key.nb, c.key.nf, c.key.delay)
+                && r.key.more == c.key.more
                 && r.key.k_index == Some(c.k_index())
                 && r.ok()
         })
@@ -160,6 +179,7 @@ impl Review {
         self.rows.iter().find(|r| {
             r.key.kind == FitKind::Ls
                 && (r.key.nb, r.key.nf, r.key.delay) == (c.key.nb, c.key.nf, c.key.delay)
+                && r.key.more == c.key.more
                 && r.ok()
         })
     }
@@ -230,12 +250,29 @@ fn build_sections(s: &Review) -> Result<Vec<Section>> {
     if !sel.bootstrap.is_empty() {
         sections.push(bootstrap::bootstrap_section(sel));
     }
-    sections.push(curves_section(s, &grid, m1, m2)?);
-    sections.push(maps_section(s, &grid, m1, m2)?);
-    sections.push(bode_section(s, m1, m2)?);
-    sections.extend(residual_sections(s, m2.or(m1))?);
+    if s.job.m == 1 {
+        sections.push(curves_section(s, &grid, m1, m2)?);
+        sections.push(maps_section(s, &grid, m1, m2)?);
+    } else {
+        sections.push(inputs::grid_section(s, lead_pick(s, m1, m2), m1, m2)?);
+    }
+    sections.push(response::bode_section(s, m1, m2)?);
+    sections.extend(response::residual_sections(s, m2.or(m1))?);
     sections.push(files_section());
     Ok(sections)
+}
+
+/// The lead rule's pick (`selection.json`'s `rule`), named as M1 or M2 when it is one of them
+/// (else "lead"), or M2, M1 when the lead rule picked nothing.
+fn lead_pick<'a>(s: &'a Review, m1: Option<Picked<'a>>, m2: Option<Picked<'a>>) -> Option<Picked<'a>> {
+    let lead = s.selection.picks.get(&s.selection.rule).and_then(|p| p.model.as_ref());
+    match lead {
+        Some(c) => {
+            let same = |p: &Option<Picked<'a>>| p.filter(|p| p.model.key == c.key);
+            Some(same(&m2).or(same(&m1)).unwrap_or(Picked { name: "lead", model: c, colour: plot::LEAD_COLOUR }))
+        }
+        None => m2.or(m1),
+    }
 }
 
 /// The rows the grid figures draw: with a delay grid, one delay (the picks', else the first).
@@ -291,9 +328,8 @@ fn picks_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -> Section 
         if let Some(p) = pick {
             let m = &p.model;
             let title = format!(
-                "{name}: OE({},{}), k = {}, γ = {}",
-                m.key.nb,
-                m.key.nf,
+                "{name}: {}, k = {}, γ = {}",
+                m.key.short_label(),
                 crate::text::k(m.k()),
                 plot::sig(m.gamma(), 4)
             );
@@ -304,6 +340,10 @@ fn picks_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -> Section 
                     plot::sig(c, 6),
                     m.evidence.offset_std.map_or(String::new(), |s| format!(" ± {}", plot::sig(s, 2)))
                 ));
+            }
+            if m.key.m() > 1 {
+                intro.push_str(&inputs::parameter_tables(s, &title, m));
+                continue;
             }
             intro.push_str(&html::parameter_table(
                 &title,
@@ -340,7 +380,7 @@ fn curves_section(s: &Review, grid: &GridView, m1: Option<Picked>, m2: Option<Pi
             Some(ki) => figs.push(figure(
                 folder,
                 file,
-                figures::curve_figure(grid_rows, curve, ki, s.k_of(ki), sel.min_tolerance, pick, file),
+                figures::curve_figure(grid_rows, curve, (ki, s.k_of(ki)), sel.min_tolerance, pick, "", file),
             )?),
             None => notes.push(format!("{file}: the table has no Huber cell to draw.")),
         }
@@ -366,7 +406,11 @@ fn maps_section(s: &Review, grid: &GridView, m1: Option<Picked>, m2: Option<Pick
     let n_k = s.job.ks.len().max(s.rows.iter().filter_map(|r| r.key.k_index).max().map_or(0, |m| m as usize + 1));
     for ki in heat_map_indices(n_k, &pick_ks) {
         let file = format!("{FIGURE_PREFIX}heat-k{ki:02}.svg");
-        figs.push(figure(folder, &file, figures::heat_figure(grid_rows, ki, s.k_of(ki), sel.basis, &picks, &file))?);
+        figs.push(figure(
+            folder,
+            &file,
+            figures::heat_figure(grid_rows, ki, s.k_of(ki), sel.basis, &picks, "", &file),
+        )?);
     }
     let file = "report-picks-k.svg";
     figs.push(figure(folder, file, figures::picks_by_k_figure(grid_rows, &s.job.ks, sel, file))?);
@@ -378,110 +422,6 @@ fn maps_section(s: &Review, grid: &GridView, m1: Option<Picked>, m2: Option<Pick
         figures: figs,
         notes: vec![],
     })
-}
-
-/// The picks' frequency responses against the spectral estimate (paper Figs. 11 and 13), with
-/// the gain band of the covariance the run computed.
-fn bode_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -> Result<Section> {
-    let folder = &s.folder;
-    let picks: Vec<Picked> = m1.into_iter().chain(m2).collect();
-    let mut figs = Vec::new();
-    let mut notes = Vec::new();
-    match crate::spectral::estimate_within(&s.est.u, &s.est.y, &s.est.seams, s.ts(), s.job.job.spectrum) {
-        Ok(est) => {
-            for p in &picks {
-                let file = format!("{FIGURE_PREFIX}bode-{}.svg", p.name.to_lowercase());
-                // The covariance the run computed for this pick (selection.json).
-                let pick = if p.name == "M1" { &s.selection.m1 } else { &s.selection.m2 };
-                let cov = pick.as_ref().and_then(|q| q.covariance.clone());
-                let m = p.model;
-                let gain = |w: f64| {
-                    crate::estimate::evidence::gain_std(
-                        &m.fit.b,
-                        &m.fit.f,
-                        m.key.delay as usize,
-                        cov.as_deref().unwrap_or(&[]),
-                        w,
-                    )
-                };
-                let gain_band: Option<&dyn Fn(f64) -> (f64, f64)> = cov.is_some().then_some(&gain);
-                figs.push(figure(folder, &file, figures::bode_figure(&est, s.job.job.band_hz, *p, gain_band, &file))?);
-            }
-        }
-        Err(e) => notes.push(format!("No spectral estimate of the estimation record: {e}")),
-    }
-    if picks.is_empty() {
-        notes.push("No pick, so no frequency response to show.".into());
-    }
-    Ok(Section {
-        id: "bode",
-        heading: "Frequency response of the picks".into(),
-        intro_html: String::new(),
-        figures: figs,
-        notes,
-    })
-}
-
-/// Residuals and simulated outputs of the M2 pick (the paper's final model, else M1) and the
-/// least-squares fit of its orders (paper Figs. 9 and 14).
-fn residual_sections(s: &Review, pick: Option<Picked>) -> Result<[Section; 2]> {
-    let folder = &s.folder;
-    let mut res_figs = Vec::new();
-    let mut out_figs = Vec::new();
-    let mut notes = Vec::new();
-    match pick {
-        Some(p) => match s.ls_row(p.model) {
-            Some(ls) => {
-                let file = "report-residuals.svg";
-                let zero = InitialState::Zero;
-                let (y_ls, y_h) = (s.output_of_row(ls, &s.est, zero), s.output_of_row(p.model, &s.est, zero));
-                res_figs.push(figure(folder, file, figures::residual_figure(&s.est.y, (ls, &y_ls), (p, &y_h), file))?);
-                // The residual tests' correlation functions, on psi_g(e) and the input less u0.
-                let loss = crate::estimate::Loss::Huber { gamma: p.model.gamma() };
-                let r: Vec<f64> = s.est.y.iter().zip(&y_h).map(|(y, yh)| loss.psi(y - yh)).collect();
-                let u: Vec<f64> = s.est.u.iter().map(|v| v - s.u0).collect();
-                let (acf, ccf) = crate::estimate::residual_tests::correlation_functions(&r, &u, &s.est.seams);
-                let file = "report-resid-corr.svg";
-                let ps = (p.model.evidence.resid_white_p, p.model.evidence.resid_indep_p);
-                res_figs.push(figure(folder, file, figures::resid_corr_figure(&acf, &ccf, r.len(), ps, p, file))?);
-                let records = [("estimation", Some(&s.est)), ("validation", s.val.as_ref())];
-                for (name, rec) in records {
-                    if let Some(rec) = rec {
-                        let file = format!("{FIGURE_PREFIX}output-{name}.svg");
-                        let (y_ls, y_h) = (
-                            s.output_of_row(ls, rec, s.job.job.initial_state),
-                            s.output_of_row(p.model, rec, s.job.job.initial_state),
-                        );
-                        out_figs.push(figure(
-                            folder,
-                            &file,
-                            figures::output_figure(&rec.y, s.ts(), name, (ls, &y_ls), (p, &y_h), OUTPUT_WINDOW, &file),
-                        )?);
-                    }
-                }
-            }
-            None => notes.push(format!(
-                "The table has no usable least-squares row of OE({},{}): no residual or output figure.",
-                p.model.key.nb, p.model.key.nf
-            )),
-        },
-        None => notes.push("No pick, so no residuals or simulated outputs to show.".into()),
-    }
-    let residuals = Section {
-        id: "residuals",
-        heading: "Residuals: least squares against Huber".into(),
-        intro_html: String::new(),
-        figures: res_figs,
-        notes: notes.clone(),
-    };
-    let outputs = Section {
-        id: "outputs",
-        heading: "Simulated outputs".into(),
-        intro_html: String::new(),
-        figures: out_figs,
-        notes,
-    };
-    Ok([residuals, outputs])
 }
 
 /// Links to the result files.
@@ -527,14 +467,24 @@ fn header(s: &Review) -> html::Header {
     if let Some(v) = &s.val {
         facts.push(("validation record".into(), record(v)));
     }
+    let range = |v: &[usize]| format!("{}..{}", v[0], v[v.len() - 1]);
+    let orders = if s.job.m == 1 {
+        format!("nB {}, nF {}", range(&s.job.nb), range(&s.job.nf))
+    } else {
+        let per_input: Vec<String> = (0..s.job.m)
+            .map(|i| {
+                let g = &s.job.grids[i];
+                let delays: Vec<String> = g.delays.iter().map(usize::to_string).collect();
+                let name = esc(&s.input_name(i));
+                format!("{name}: nB {}, nF {}, delay {}", range(&g.nb), range(&g.nf), delays.join(", "))
+            })
+            .collect();
+        per_input.join("; ")
+    };
     facts.push((
         "grid".into(),
         format!(
-            "nB {}..{}, nF {}..{}, {} values of k from {} to {}, Huber fits start from <code>{}</code>",
-            s.job.nb[0],
-            s.job.nb[s.job.nb.len() - 1],
-            s.job.nf[0],
-            s.job.nf[s.job.nf.len() - 1],
+            "{orders}, {} values of k from {} to {}, Huber fits start from <code>{}</code>",
             s.job.ks.len(),
             plot::short(kmin),
             plot::short(kmax),
@@ -550,7 +500,11 @@ fn header(s: &Review) -> html::Header {
         format!(
             "offset <code>{}</code>, input level u0 = {} taken out; fits judged with initial state <code>{}</code>",
             j.offset.as_str(),
-            plot::short(s.u0),
+            if s.job.m == 1 {
+                plot::short(s.u0)
+            } else {
+                format!("[{}]", s.u0s.iter().map(|v| plot::short(*v)).collect::<Vec<_>>().join(", "))
+            },
             j.initial_state.as_str()
         ),
     ));

@@ -253,6 +253,8 @@ pub const MEASURED: RGBColor = RGBColor(120, 120, 120);
 pub const LS_COLOUR: RGBColor = RGBColor(31, 119, 180);
 pub const M1_COLOUR: RGBColor = RGBColor(214, 39, 40);
 pub const M2_COLOUR: RGBColor = RGBColor(255, 127, 14);
+/// The lead rule's pick where it is neither M1 nor M2 (several inputs' grid figures).
+pub const LEAD_COLOUR: RGBColor = RGBColor(44, 160, 44);
 pub const BAND_COLOUR: RGBColor = RGBColor(120, 170, 230);
 pub const GRID_COLOUR: RGBColor = RGBColor(225, 225, 225);
 

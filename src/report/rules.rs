@@ -24,7 +24,7 @@ pub(super) fn rules_section(s: &Review) -> Result<Section> {
             let lead = if *rule == sel.rule { " (lead)" } else { "" };
             let (model, k, score, p, cancel) = match &pick.model {
                 Some(m) => (
-                    format!("OE({},{}), d = {}", m.key.nb, m.key.nf, m.key.delay),
+                    super::html::orders(&m.key),
                     m.row.k.map_or("–".into(), plot::short),
                     Some(m.score).filter(|v| v.is_finite()).map_or("–".into(), |v| format!("{v:.3}")),
                     m.evidence.resid_indep_p.map_or("–".into(), |p| plot::sig(p, 3)),

@@ -116,25 +116,14 @@ fn a_first_order_lag_comes_back_exactly() {
 fn c2d_after_d2c_is_the_model() {
     let f = crate::oe::poly_from_poles(&[(0.99, 0.3), (0.95, 1.1)], &[]);
     let b = [0.02, -0.011, 0.004, 0.007];
-    let m = super::super::model::ModelOut {
-        name: String::new(),
-        delay: 3,
-        k: None,
-        ts: 1e-3,
-        b: b.to_vec(),
-        f: f.clone(),
-        offset: None,
-        input_level: 0.0,
-        covariance: None,
-        parameters: Vec::new(),
-        noise_variance: None,
-    };
+    let ts = 1e-3;
+    let m = super::super::model::InputModel { b: b.to_vec(), f: f.clone(), delay: 3, input_level: 0.0 };
     let (num, den) = m.num_den();
     for method in [Method::Zoh, Method::Tustin] {
-        let c = to_continuous(&num, &den, m.ts, method).unwrap();
+        let c = to_continuous(&num, &den, ts, method).unwrap();
         assert_eq!(c.delay_samples, 2, "{method}: {c:?}");
         assert_eq!(c.den.len(), 5);
-        let (nz, dz) = c2d(&c, m.ts);
+        let (nz, dz) = c2d(&c, ts);
         close(&format!("{method} num"), &nz, &num, 1e-9);
         close(&format!("{method} den"), &dz, &den, 1e-9);
     }

@@ -13,21 +13,35 @@ fn wrap180(d: f64) -> f64 {
     if w <= -180.0 { w + 360.0 } else { w }
 }
 
+/// The filter a Bode figure draws: one input's `q^-delay B/F` of a pick, and for a model of
+/// several inputs the input's name.
+pub struct Response<'a> {
+    pub b: &'a [f64],
+    pub f: &'a [f64],
+    pub delay: usize,
+    pub input: Option<&'a str>,
+}
+
+/// Model points of a Bode figure without an estimate (its frequency grid otherwise).
+const POINTS_WITHOUT_ESTIMATE: usize = 257;
+
 /// Bode magnitude (dB) and phase (deg) of one pick against the Welch estimate, with the fit band
-/// shaded and the coherence below (paper Figs. 11 and 13).
+/// shaded and the coherence below (paper Figs. 11 and 13); without an estimate (`est` None: a
+/// model of several inputs, which has no per-input estimate yet) the model's response alone.
 /// `gain_band`, when given, maps a normalised frequency w (rad/sample) to the model's |G| and
 /// its standard deviation (the robust covariance through the gradient of G, METHOD.md 10): the
 /// figure draws |G| +/- 2 std.
 pub fn bode_figure(
-    est: &SpectralEstimate,
+    (est, ts): (Option<&SpectralEstimate>, f64),
     band: Option<[f64; 2]>,
     pick: Picked<'_>,
+    response: Response<'_>,
     gain_band: Option<&dyn Fn(f64) -> (f64, f64)>,
     file: &str,
 ) -> std::result::Result<Figure, String> {
     let m = &pick.model;
-    let bins = est.freq_hz.len();
-    let nyquist = 0.5 / est.ts;
+    let bins = est.map_or(POINTS_WITHOUT_ESTIMATE, |e| e.freq_hz.len());
+    let nyquist = 0.5 / ts;
     // Four model points per Welch bin; index 4 k is bin k.
     const REFINE: usize = 4;
     let fine = (bins - 1) * REFINE + 1;
@@ -36,7 +50,7 @@ pub fn bode_figure(
     let mut phase = Vec::with_capacity(fine);
     let mut prev = 0.0;
     for j in 0..fine {
-        let (re, im) = freq_response(&m.fit.b, &m.fit.f, m.key.delay as usize, rad_per_fine * j as f64);
+        let (re, im) = freq_response(response.b, response.f, response.delay, rad_per_fine * j as f64);
         mag.push(20.0 * re.hypot(im).log10());
         let p = im.atan2(re).to_degrees();
         // Unwrap along frequency: the model's phase is smooth, so each step is well below 180.
@@ -68,17 +82,19 @@ pub fn bode_figure(
     // The estimate's phase is drawn on the model's branch (within ±180° of it), so a 360° jump at
     // one noisy bin cannot offset the rest of the curve as a plain unwrap would.
     let mut welch: Vec<(f64, f64, f64, f64)> = Vec::new();
-    for k in 0..bins {
-        let (re, im) = (est.re[k], est.im[k]);
-        if re.is_finite() && im.is_finite() && est.freq_hz[k] > 0.0 {
-            let p = im.atan2(re).to_degrees();
-            let reference = phase[k * REFINE];
-            welch.push((
-                est.freq_hz[k].log10(),
-                20.0 * re.hypot(im).log10(),
-                reference + wrap180(p - reference),
-                est.coherence[k],
-            ));
+    if let Some(est) = est {
+        for k in 0..bins {
+            let (re, im) = (est.re[k], est.im[k]);
+            if re.is_finite() && im.is_finite() && est.freq_hz[k] > 0.0 {
+                let p = im.atan2(re).to_degrees();
+                let reference = phase[k * REFINE];
+                welch.push((
+                    est.freq_hz[k].log10(),
+                    20.0 * re.hypot(im).log10(),
+                    reference + wrap180(p - reference),
+                    est.coherence[k],
+                ));
+            }
         }
     }
     let mag_values = mag.iter().copied().chain(welch.iter().map(|w| w.1)).filter(|v| v.is_finite());
@@ -89,23 +105,32 @@ pub fn bode_figure(
         padded_range(phase.iter().copied().chain(welch.iter().map(|w| w.2)), 0.05).unwrap_or((-180.0, 180.0));
     let band_text = band.map(|[a, b]| format!("{} to {} Hz", short(a), short(b)));
     // The robust estimate is Welch's of the output with its spikes cleaned out (METHOD.md 11).
-    let cleaned =
-        if est.replaced > 0 { format!(", {} output spikes cleaned out first", est.replaced) } else { String::new() };
-    let title_text =
-        format!("Frequency response of {} against the Welch estimate (cf. paper Figs. 11, 13)", pick.label());
-    let svg = render((1000, 900), |root| {
+    let cleaned = match est {
+        Some(e) if e.replaced > 0 => format!(", {} output spikes cleaned out first", e.replaced),
+        _ => String::new(),
+    };
+    let from = response.input.map(|u| format!(" from input {u}")).unwrap_or_default();
+    let title_text = match est {
+        Some(_) => {
+            format!("Frequency response of {}{from} against the Welch estimate (cf. paper Figs. 11, 13)", pick.label())
+        }
+        None => format!("Frequency response of {}{from} (cf. paper Figs. 11, 13)", pick.label()),
+    };
+    // Without an estimate there is no coherence panel: the phase panel carries the axis.
+    let last = if est.is_some() { 2 } else { 1 };
+    let svg = render((1000, if est.is_some() { 900 } else { 700 }), |root| {
         let body = title(root, &title_text, 17.0)?;
         // Room for three legend rows (the model, the estimate, its band and the fit band).
         let (head, body) = body.split_vertically(80);
         let (mag_area, rest) = body.split_vertically(350);
-        let (phase_area, coh_area) = rest.split_vertically(260);
+        let (phase_area, coh_area) = if est.is_some() { rest.split_vertically(260) } else { (rest.clone(), rest) };
         let fx = || log_axis(x_lo, x_hi);
         let panels = [
             (&mag_area, mlo, mhi, "|G| [dB, output unit per input unit]", nice_ticks(mlo, mhi, 7), 20),
-            (&phase_area, plo, phi, "phase [deg]", phase_ticks(plo, phi), 20),
+            (&phase_area, plo, phi, "phase [deg]", phase_ticks(plo, phi), if last == 1 { 46 } else { 20 }),
             (&coh_area, 0.0, 1.05, "coherence", vec![0.0, 0.5, 1.0], 46),
         ];
-        for (i, (area, lo, hi, desc, ticks, xl)) in panels.into_iter().enumerate() {
+        for (i, (area, lo, hi, desc, ticks, xl)) in panels.into_iter().enumerate().take(last + 1) {
             let mut chart = ChartBuilder::on(area)
                 .margin_left(10)
                 .margin_right(20)
@@ -119,7 +144,7 @@ pub fn bode_figure(
                 .axis_desc_style(text(14.0))
                 .bold_line_style(GRID_COLOUR)
                 .light_line_style(TRANSPARENT);
-            if i == 2 {
+            if i == last {
                 mesh.x_desc("frequency [Hz]");
             } else {
                 // Shared frequency axis: numbers only under the last panel.
@@ -158,10 +183,14 @@ pub fn bode_figure(
                 }
             }
         }
-        let mut entries = vec![
-            (Mark::Line { colour: pick.colour, width: 2, dashed: false }, pick.label()),
-            (Mark::Dot(MEASURED), format!("Welch estimate S_yu/S_uu ({}-sample Hann segments){cleaned}", est.segment)),
-        ];
+        let mut entries =
+            vec![(Mark::Line { colour: pick.colour, width: 2, dashed: false }, format!("{}{from}", pick.label()))];
+        if let Some(est) = est {
+            entries.push((
+                Mark::Dot(MEASURED),
+                format!("Welch estimate S_yu/S_uu ({}-sample Hann segments){cleaned}", est.segment),
+            ));
+        }
         if !confidence.is_empty() {
             entries.push((
                 Mark::Line { colour: light, width: 1, dashed: false },
@@ -174,6 +203,16 @@ pub fn bode_figure(
         legend(&head, 90, 4, 900, &entries, 14.0)?;
         Ok(())
     })?;
+    if est.is_none() {
+        let caption = format!(
+            "Magnitude and phase of {}{from}, that input's filter q^-d B/F alone; the thin light lines are |G| ± 2 \
+             standard deviations (its block of the robust parameter covariance through the gradient of G, METHOD.md \
+             10). A model of several inputs has no per-input spectral estimate of the record yet, so no measured \
+             response is drawn.",
+            pick.label()
+        );
+        return Ok(Figure { file: file.into(), alt: title_text, caption, svg });
+    }
     let caption = format!(
         "Magnitude and phase of {} (line) and the nonparametric Welch estimate of the estimation record \
          (dots; robust by default: samples that a robust prediction filter misses by more than 3 robust \

@@ -18,14 +18,15 @@ fn curves_at(rows: &[CellRow], k_index: u32) -> BTreeMap<u32, Vec<&CellRow>> {
 }
 
 /// W (or L1C) as a function of nF, one line per nB, at one k, with the local minima ringed and
-/// the pick marked (paper Figs. 10 and 12).
+/// the pick marked (paper Figs. 10 and 12). `scope` ends the title (several inputs: which
+/// input's orders the rows hold).
 pub fn curve_figure(
     rows: &[CellRow],
     curve: Curve,
-    k_index: u32,
-    k: f64,
+    (k_index, k): (u32, f64),
     min_tolerance: f64,
     pick: Option<Picked<'_>>,
+    scope: &str,
     file: &str,
 ) -> std::result::Result<Figure, String> {
     let curves = curves_at(rows, k_index);
@@ -48,7 +49,7 @@ pub fn curve_figure(
         Curve::L1c => ("L1 contribution L1C", "L1C = share of samples with |e_t| > γ  [%]", "12"),
     };
     let title_text =
-        format!("{what} versus nF at k = {} (one line per nB; cf. paper Fig. {fig_no})", crate::text::k(k));
+        format!("{what} versus nF at k = {} (one line per nB; cf. paper Fig. {fig_no}){scope}", crate::text::k(k));
     let mut minima_count = 0;
     let svg = render((1000, 560), |root| {
         let body = title(root, &title_text, 17.0)?;

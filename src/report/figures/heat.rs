@@ -7,13 +7,14 @@ use crate::table::CellRow;
 use plotters::prelude::*;
 
 /// Heat maps over (nB, nF) at one k: W, L1C and the fit of the selection's basis, with the picks
-/// outlined.
+/// outlined. `scope` ends the title (several inputs: which input's orders the rows hold).
 pub fn heat_figure(
     rows: &[CellRow],
     k_index: u32,
     k: f64,
     basis: FitBasis,
     picks: &[Picked<'_>],
+    scope: &str,
     file: &str,
 ) -> std::result::Result<Figure, String> {
     let cells: Vec<&CellRow> = rows.iter().filter(|r| r.is_huber() && r.key.k_index == Some(k_index)).collect();
@@ -32,7 +33,7 @@ pub fn heat_figure(
     ];
     let n_rows = nb_hi - nb_lo + 1;
     let height = (150 + 34 * n_rows).clamp(330, 900);
-    let title_text = format!("Heat maps over (nB, nF) at k = {} (k index {k_index})", crate::text::k(k));
+    let title_text = format!("Heat maps over (nB, nF) at k = {} (k index {k_index}){scope}", crate::text::k(k));
     let mut clipped_note = Vec::new();
     let svg = render((HEAT_WIDTH, height), |root| {
         let body = title(root, &title_text, 17.0)?;

@@ -13,7 +13,7 @@ mod picks_k;
 mod resid_corr;
 mod residuals;
 
-pub use bode::bode_figure;
+pub use bode::{Response, bode_figure};
 pub use criteria::criteria_figure;
 pub use curve::curve_figure;
 pub use heat::heat_figure;
@@ -42,8 +42,8 @@ pub struct Picked<'a> {
 }
 
 impl Picked<'_> {
-    /// "M1 OE(9,9), k = 0.05".
+    /// "M1 OE(9,9), k = 0.05" (several inputs: "M1 OE(2,2 d1; 1,1 d0), k = 0.05").
     pub fn label(&self) -> String {
-        format!("{} OE({},{}), k = {}", self.name, self.model.key.nb, self.model.key.nf, crate::text::k(self.model.k()))
+        format!("{} {}, k = {}", self.name, self.model.key.short_label(), crate::text::k(self.model.k()))
     }
 }

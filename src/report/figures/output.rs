@@ -92,7 +92,7 @@ pub fn output_figure(
             (Mark::Line { colour: MEASURED, width: 1, dashed: false }, "measured".to_string()),
             (
                 Mark::Line { colour: LS_COLOUR, width: 2, dashed: true },
-                format!("least squares OE({},{}), fit {:.2} %", ls.key.nb, ls.key.nf, fit_ls),
+                format!("least squares {}, fit {:.2} %", ls.key.short_label(), fit_ls),
             ),
             (
                 Mark::Line { colour: pick.colour, width: 2, dashed: false },

@@ -6,17 +6,19 @@ use crate::estimate::residual_tests::MAX_LAG;
 use plotters::prelude::*;
 
 /// The autocorrelation of the pick's robust residuals psi_g(e) (lags 1..25) and their
-/// cross-correlation with the input (lags 0..25), with the 99 % bounds of the tests.
+/// cross-correlation with the input (lags 0..25), with the 99 % bounds of the tests. `scope`
+/// ends the title (several inputs: the input of the cross-correlation).
 pub fn resid_corr_figure(
     acf: &[f64],
     ccf: &[f64],
     n: usize,
     (white_p, indep_p): (Option<f64>, Option<f64>),
     pick: Picked<'_>,
+    scope: &str,
     file: &str,
 ) -> std::result::Result<Figure, String> {
     let bound = 2.58 / (n as f64).sqrt();
-    let title_text = format!("Residual tests of {}: correlations of the robust residuals ψ_γ(e)", pick.label());
+    let title_text = format!("Residual tests of {}: correlations of the robust residuals ψ_γ(e){scope}", pick.label());
     let p = |v: Option<f64>| v.map_or("–".to_string(), |v| sig(v, 3));
     let svg = render((1000, 640), |root| {
         let body = title(root, &title_text, 17.0)?;

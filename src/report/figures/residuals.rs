@@ -55,7 +55,7 @@ pub fn residual_figure(
         let body = title(root, &title_text, 17.0)?;
         let (top, bottom) = body.split_vertically(body.dim_in_pixel().1 as i32 / 2);
         let panels = [
-            (&top, &e_ls, LS_COLOUR, format!("least-squares OE({},{}), σ = {}", ls.key.nb, ls.key.nf, sig(sigma, 3))),
+            (&top, &e_ls, LS_COLOUR, format!("least-squares {}, σ = {}", ls.key.short_label(), sig(sigma, 3))),
             (&bottom, &e_h, pick.colour, format!("Huber {}, γ = k σ = {}", pick.label(), sig(gamma, 3))),
         ];
         for (i, (area, e, colour, name)) in panels.into_iter().enumerate() {
@@ -123,12 +123,11 @@ pub fn residual_figure(
     })?;
     let caption = format!(
         "Histograms of e_t = y_t - ŷ_t over the whole estimation record ({} samples), for the least-squares fit \
-         of OE({},{}) (top, with the Gaussian of the same σ) and for the Huber pick (bottom); each panel has its \
+         of {} (top, with the Gaussian of the same σ) and for the Huber pick (bottom); each panel has its \
          own scale. Dashed red: ±γ; residuals beyond it form the L1 part of Huber's criterion (the pick's L1C \
          is {:.1} %). Residuals beyond the axis (the spikes) are counted in the legends.",
         e_ls.len(),
-        ls.key.nb,
-        ls.key.nf,
+        ls.key.short_label(),
         100.0 * m.l1c()
     );
     Ok(Figure { file: file.into(), alt: title_text, caption, svg })
