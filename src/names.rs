@@ -116,7 +116,7 @@ mod tests {
     use crate::data::Offset;
     use crate::estimate::{HuberHessian, InitialState, SolverMethod, Termination};
     use crate::export::continuous::Method;
-    use crate::job::{Spacing, StartStrategy, UncertaintyMethod};
+    use crate::job::{SearchMode, Spacing, StartStrategy, UncertaintyMethod};
     use crate::reduce::{FitBasis, Rule};
     use crate::spectral::SpectrumMethod;
     use crate::table::{FitKind, Status};
@@ -175,6 +175,7 @@ mod tests {
             check::<Method>(),
             check::<Offset>(),
             check::<Rule>(),
+            check::<SearchMode>(),
             check::<SolverMethod>(),
             check::<Spacing>(),
             check::<SpectrumMethod>(),
