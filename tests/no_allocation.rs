@@ -60,7 +60,7 @@ fn a_minimisation_with_pole_reflections_allocates_only_its_result() {
 
 #[test]
 fn a_minimisation_of_several_inputs_allocates_only_its_result() {
-    // Two inputs, an offset and 5 % spikes: the Huber fit at a small gamma meant to run both
+    // Two inputs, an offset and 5 % spikes: the Huber fit at a small gamma runs both
     // weighted paths of the several inputs' normal equations (from the least-squares fit, which
     // the spikes bias, most rows beyond gamma; at the solution, the spikes).
     let n = 3000;
