@@ -15,7 +15,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use oesweep::estimate::normal::{Layout, NormalEquations};
+use oesweep::estimate::normal::{Layout, NormalEquations, SeveralForm};
 use oesweep::estimate::{self, Judge, Loss, Problem, SolverOptions, Workspace, solver};
 use oesweep::oe;
 
@@ -129,7 +129,47 @@ fn one_iteration(c: &mut Criterion, s: &Setup) {
     });
 }
 
+/// The normal equations of several inputs in both forms (`SeveralForm`): m = 2, 3 inputs of
+/// OE(n, n), d = 1, each input's nB + nF = 2, 6, 12, 24, N = 3000, with an offset; all weights
+/// 1 (least squares) and 5 % of the rows at weight 0 (a Huber solution's L1 set). The
+/// sequences are random: the time does not depend on their values. The two forms of one size
+/// run one after the other, so drifts of the machine touch both alike.
+fn normal_equations_several(c: &mut Criterion) {
+    const N: usize = 3000;
+    let mut s = 99u64;
+    let mut next = move || {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+    };
+    let mut group = c.benchmark_group("normal_equations_several");
+    for m in [2, 3] {
+        let xu: Vec<f64> = (0..m * N).map(|_| next()).collect();
+        let xy: Vec<f64> = (0..m * N).map(|_| next()).collect();
+        let r: Vec<f64> = (0..N).map(|_| next()).collect();
+        let w: Vec<f64> = (0..N).map(|t| if (t * 7919) % 100 < 5 { 0.0 } else { 1.0 }).collect();
+        for per_input in [2, 6, 12, 24] {
+            let o = oesweep::structure::Orders { nb: per_input / 2, nf: per_input / 2, delay: 1 };
+            let lay = Layout::new(Structure::new(&vec![o; m]).expect("m inputs"));
+            let d = lay.dim() + 1;
+            let (mut h, mut g) = (vec![0.0; d * d], vec![0.0; d]);
+            let mut ne = NormalEquations::default();
+            for (regime, weights) in [("ls", None), ("huber", Some(&w[..]))] {
+                for (name, form) in [("rows", SeveralForm::Rows), ("correlations", SeveralForm::Correlations)] {
+                    let id = BenchmarkId::new(name, format!("m{m}_d{per_input}_{regime}"));
+                    group.bench_function(id, |bch| {
+                        bch.iter(|| {
+                            ne.build_several(form, &lay, true, &[], black_box(&xu), &xy, weights, &r, &mut h, &mut g)
+                        })
+                    });
+                }
+            }
+        }
+    }
+    group.finish();
+}
+
 fn kernels(c: &mut Criterion) {
+    normal_equations_several(c);
     let s = setup();
     filters(c, &s);
     normal_equations(c, &s);

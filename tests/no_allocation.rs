@@ -3,7 +3,7 @@
 //! a global allocator counts the allocations of a second, identical minimisation.
 
 use oesweep::estimate::{Loss, Problem, SolverMethod, SolverOptions, Workspace, initial_guess, solver};
-use oesweep::oe::Structure;
+use oesweep::oe::{Orders, Structure};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -56,4 +56,42 @@ fn a_minimisation_with_pole_reflections_allocates_only_its_result() {
         assert_eq!(ls2.criterion, ls.criterion);
         assert!(h2.iterations > 0 && ls2.iterations > 0);
     }
+}
+
+#[test]
+fn a_minimisation_of_several_inputs_allocates_only_its_result() {
+    // Two inputs, an offset and 5 % spikes: the Huber fit at a small gamma runs both
+    // weighted paths of the several inputs' normal equations (from the least-squares fit, which
+    // the spikes bias, most rows beyond gamma; at the solution, the spikes).
+    let n = 3000;
+    let o = |nb, nf, delay| Orders { nb, nf, delay };
+    let structure = Structure::new(&[o(2, 2, 1), o(1, 1, 2)]).unwrap();
+    let mut s = 5u64;
+    let mut next = move || {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+    };
+    let u: Vec<f64> = (0..2 * n).map(|_| if next() > 0.0 { 1.0 } else { -1.0 }).collect();
+    let zeros = vec![0.0; n];
+    let truth = [0.5, 0.3, -1.5, 0.7, 0.8, -0.9, 0.2];
+    let clean = Problem { u: &u, y: &zeros, structure, offset: true, seams: &[] }.simulate_vec(&truth);
+    let y: Vec<f64> =
+        clean.iter().enumerate().map(|(t, v)| v + 0.1 * next() + if t % 20 == 7 { 3.0 } else { 0.0 }).collect();
+    let prob = Problem { u: &u, y: &y, structure, offset: true, seams: &[] };
+    let start = initial_guess::initial_guesses(&prob).remove(0);
+    let opts = SolverOptions::default();
+    let mut ws = Workspace::new();
+    let run = |ws: &mut Workspace| {
+        let ls = solver::minimise(&prob, Loss::LeastSquares, &start, &opts, ws);
+        let gamma = 0.1 * (2.0 * ls.criterion).sqrt();
+        let h = solver::minimise(&prob, Loss::Huber { gamma }, &ls.theta, &opts.huber(), ws);
+        (ls, h)
+    };
+    let (ls, h) = run(&mut ws);
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let (ls2, h2) = run(&mut ws);
+    let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    assert_eq!(allocations, 2, "{allocations} allocations in two sized minimisations of several inputs");
+    assert_eq!((ls2.criterion, h2.criterion), (ls.criterion, h.criterion));
+    assert!(h2.iterations > 0 && ls2.iterations > 0);
 }

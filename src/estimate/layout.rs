@@ -10,6 +10,24 @@ pub(super) enum Seq {
     Y,
 }
 
+/// Columns `col .. col + len` of the Jacobian: `sign * s[t - lag - j]` for column `col + j`,
+/// with `s` input `input`'s `xu` or `xy` ([`Layout::runs`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Run {
+    pub input: usize,
+    pub seq: Seq,
+    pub sign: f64,
+    pub col: usize,
+    pub lag: usize,
+    pub len: usize,
+}
+
+impl Default for Run {
+    fn default() -> Self {
+        Run { input: 0, seq: Seq::U, sign: 1.0, col: 0, lag: 0, len: 0 }
+    }
+}
+
 /// Column structure of the OE Jacobian for given orders: per input i, its b_i columns
 /// (`xu_i`, +1, d_i + j) and then its f_i columns (`xy_i`, -1, j), inputs one after the other
 /// (theta's order). The sequences `xu` and `xy` hold every input's signal, input after input
@@ -46,6 +64,24 @@ impl Layout {
     #[inline(always)]
     pub(super) fn col(&self, c: usize) -> (Seq, f64, usize) {
         if c < self.nb { (Seq::U, 1.0, self.delay + c) } else { (Seq::Y, -1.0, c - self.nb + 1) }
+    }
+
+    /// The columns as runs of one sequence at consecutive lags, in column order: per input,
+    /// its b_i run (`xu_i`, +1, lags `d_i ..`) and then its f_i run (`xy_i`, -1, lags `1 ..`);
+    /// empty runs (nB_i or nF_i = 0) are left out. Returns how many of `out` it filled
+    /// (at most 2 [`crate::structure::MAX_INPUTS`]).
+    pub(super) fn runs(&self, out: &mut [Run; 2 * crate::structure::MAX_INPUTS]) -> usize {
+        let (mut k, mut col) = (0, 0);
+        for (i, o) in self.structure.inputs().iter().enumerate() {
+            for (seq, sign, lag, len) in [(Seq::U, 1.0, o.delay, o.nb), (Seq::Y, -1.0, 1, o.nf)] {
+                if len > 0 {
+                    out[k] = Run { input: i, seq, sign, col, lag, len };
+                    k += 1;
+                }
+                col += len;
+            }
+        }
+        k
     }
 
     /// Column `c` of any layout: (input, sequence, sign, lag).

@@ -16,9 +16,16 @@
 //! psi_t psi_t^T` over the rows with `w_t != 1`, which at a Huber solution are few. When most
 //! rows are reweighted the sum is instead taken directly over the rows with `w_t > 0`, which
 //! keeps the cost at O(N d + min(#reweighted, N) d^2) and avoids cancellation.
+//!
+//! Several inputs ([`SeveralForm`], `normal/several.rs`) have 2m sequences, `xu_i` and `xy_i`
+//! input after input, and the same sums over every pair of them (METHOD.md 19). One input's
+//! code below is theirs for m = 1, unchanged bit for bit.
+
+mod several;
 
 pub use super::layout::Layout;
 use super::layout::Seq;
+pub use several::SeveralForm;
 
 /// `rows[..m]` <- the t with `w[t] != skip`, and `alpha[..m]` (if given) <- those `w[t]`;
 /// returns m. Both keep their length (`w.len() + 3`, the kernel's scratch) from call to call:
@@ -70,6 +77,8 @@ pub struct NormalEquations {
     /// The last `build` summed the weighted rows directly (`rows`, `alpha` = the rows with
     /// w_t > 0 and their weights) rather than as a correction (`alpha = w_t - 1`).
     direct: bool,
+    /// Lagged correlations of two sequences of several inputs ([`SeveralForm::Correlations`]).
+    lagged: Vec<f64>,
     /// One experiment's `h` and `g` in [`NormalEquations::build_all`].
     part_h: Vec<f64>,
     part_g: Vec<f64>,
@@ -109,7 +118,7 @@ impl NormalEquations {
         g: &mut [f64],
     ) {
         if lay.structure.m() > 1 {
-            return self.build_rows(lay, offset, seams, xu, xy, w, r, h, g);
+            return self.build_several(SeveralForm::Correlations, lay, offset, seams, xu, xy, w, r, h, g);
         }
         if seams.is_empty() {
             self.build(lay, xu, xy, w, r, h, g);
@@ -364,79 +373,6 @@ impl NormalEquations {
             }
             let q = if uniform { &self.packed[..mb * dp] } else { &self.scaled[..mb * dp] };
             crate::kernels::syrk_upper(h, d, &self.packed[..mb * dp], q, dp, mb, scale);
-        }
-    }
-
-    /// The normal equations of several inputs, offset and seams included, from the Jacobian's
-    /// rows: `g` over every row, `h` over the rows with a weight, packed in blocks for one
-    /// matrix product each. O(N d^2) where one input's lagged correlations are O(N d); a
-    /// correlation form over every pair of the 2m sequences is the step after this one
-    /// (docs/ARCHITECTURE.md, "Several inputs").
-    #[allow(clippy::too_many_arguments)]
-    fn build_rows(
-        &mut self,
-        lay: &Layout,
-        offset: bool,
-        seams: &[usize],
-        xu: &[f64],
-        xy: &[f64],
-        w: Option<&[f64]>,
-        r: &[f64],
-        h: &mut [f64],
-        g: &mut [f64],
-    ) {
-        let n = r.len();
-        let d0 = lay.dim();
-        let d = d0 + usize::from(offset);
-        let dp = d.div_ceil(4) * 4;
-        let inv_n = 1.0 / n as f64;
-        h[..d * d].fill(0.0);
-        g[..d].fill(0.0);
-        self.packed.resize(PACK_BLOCK * dp, 0.0);
-        self.scaled.resize(PACK_BLOCK * dp, 0.0);
-        self.psi.resize(dp, 0.0);
-        let mut mb = 0;
-        let mut seam = 0;
-        let mut t0 = 0;
-        for t in 0..n {
-            while seam < seams.len() && seams[seam] <= t {
-                t0 = seams[seam];
-                seam += 1;
-            }
-            let row = &mut self.packed[mb * dp..(mb + 1) * dp];
-            lay.row_from(xu, xy, t, t0, &mut row[..d0]);
-            if offset {
-                row[d0] = 1.0;
-            }
-            row[d..].fill(0.0);
-            for (gc, &p) in g[..d].iter_mut().zip(&row[..d]) {
-                *gc += p * r[t];
-            }
-            let a = w.map_or(1.0, |w| w[t]);
-            if a == 0.0 {
-                continue;
-            }
-            for (q, &p) in self.scaled[mb * dp..(mb + 1) * dp].iter_mut().zip(&self.packed[mb * dp..(mb + 1) * dp]) {
-                *q = a * p;
-            }
-            mb += 1;
-            if mb == PACK_BLOCK || t + 1 == n {
-                crate::kernels::syrk_upper(h, d, &self.packed[..mb * dp], &self.scaled[..mb * dp], dp, mb, 1.0);
-                mb = 0;
-            }
-        }
-        if mb > 0 {
-            crate::kernels::syrk_upper(h, d, &self.packed[..mb * dp], &self.scaled[..mb * dp], dp, mb, 1.0);
-        }
-        for gc in &mut g[..d] {
-            *gc *= inv_n;
-        }
-        for i in 0..d {
-            for j in i..d {
-                let v = h[i * d + j] * inv_n;
-                h[i * d + j] = v;
-                h[j * d + i] = v;
-            }
         }
     }
 
