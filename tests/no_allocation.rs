@@ -1,27 +1,40 @@
 //! The solver's iteration loop allocates nothing once its workspace is sized (guide: "no
 //! allocation in the iteration loop; one workspace per worker"), pole reflections included:
-//! a global allocator counts the allocations of a second, identical minimisation.
+//! a global allocator counts the allocations of a second, identical minimisation. It counts
+//! per thread: the tests run side by side in one process, and each counts only its own.
 
 use oesweep::estimate::{Loss, Problem, SolverMethod, SolverOptions, Workspace, initial_guess, solver};
 use oesweep::oe::{Orders, Structure};
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::cell::Cell;
 
 struct Counting;
 
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+thread_local! {
+    // Const-initialised and without a destructor: reading it allocates nothing.
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+fn count() {
+    ALLOCATIONS.with(|c| c.set(c.get() + 1));
+}
+
+/// Allocations of this thread so far.
+fn allocations() -> usize {
+    ALLOCATIONS.with(Cell::get)
+}
 
 // SAFETY: forwards to the system allocator, only counting.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count();
         unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count();
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
@@ -48,9 +61,9 @@ fn a_minimisation_with_pole_reflections_allocates_only_its_result() {
         };
         let (ls, _) = run(&mut ws);
         assert!(method == SolverMethod::Separable || ls.reflections > 0, "the test needs a fit that reflects poles");
-        let before = ALLOCATIONS.load(Ordering::Relaxed);
+        let before = allocations();
         let (ls2, h2) = run(&mut ws);
-        let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+        let allocations = allocations() - before;
         // Each minimisation allocates its result's theta, nothing else.
         assert_eq!(allocations, 2, "{method:?}: {allocations} allocations in two sized minimisations");
         assert_eq!(ls2.criterion, ls.criterion);
@@ -88,9 +101,9 @@ fn a_minimisation_of_several_inputs_allocates_only_its_result() {
         (ls, h)
     };
     let (ls, h) = run(&mut ws);
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = allocations();
     let (ls2, h2) = run(&mut ws);
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    let allocations = allocations() - before;
     assert_eq!(allocations, 2, "{allocations} allocations in two sized minimisations of several inputs");
     assert_eq!((ls2.criterion, h2.criterion), (ls.criterion, h.criterion));
     assert!(h2.iterations > 0 && ls2.iterations > 0);
