@@ -53,8 +53,9 @@
 //! gives data that an integrator explains as well; there the test may fire and the fits lie on
 //! the boundary (METHOD.md 7.3 measures where).
 
+use super::fit::Judge;
 use super::initial_guess::{arx, regressor};
-use super::initial_state::add_free_response;
+use super::initial_state::{InitialState, Scratch};
 use super::least_squares::BOUNDARY;
 use super::problem::Problem;
 use crate::oe;
@@ -114,8 +115,72 @@ pub fn pole_test(u: &[f64], y: &[f64], seams: &[usize], delay: usize) -> Option<
     // more than a whole sweep of a 1e6-sample record.
     let head = u.len().min(MAX_ROWS);
     let (u, y) = (&u[..head], &y[..head]);
-    let seams: Vec<usize> = seams.iter().copied().filter(|&s| s < head).collect();
-    let seams = &seams[..];
+    let seams = head_seams(seams, head);
+    let (prob, fit) = fitted(u, y, &seams, delay)?;
+    test_poles(&prob, &fit)
+}
+
+/// Rounds of the several-input test: each input's fit to the output less the other inputs'
+/// contributions, input after input.
+const ROUNDS: usize = 3;
+
+/// The integrating-plant test of each input of a record of `m` inputs (`u` input after input,
+/// N samples each; `delays` one per input): one entry per input, None where its regressions
+/// are degenerate. One input is [`pole_test`]. Several (METHOD.md 7.3, 19): Young's refined IV
+/// of a model with a denominator per input, by backfitting: input i's one-input test model
+/// `A_i y_i = B_i u_i + c + v` is fitted to `y_i = y - sum_{j != i} x_j`, the output less the
+/// other inputs' noise-free outputs `x_j = (B_j/A_j) u_j` of their current fits (zero before
+/// their first), input after input, [`ROUNDS`] rounds; each input is then tested on its last
+/// fit as one input is. Another input's integrator is thus taken out of the output before input
+/// i is looked at (in `y` itself it is a drift that input i's low-order fit would put a pole
+/// at 1 for), and an input whose path integrates leaves A_i(1) = 0 however the others behave.
+pub fn pole_tests(u: &[f64], m: usize, y: &[f64], seams: &[usize], delays: &[usize]) -> Vec<Option<PoleTest>> {
+    assert_eq!((u.len(), delays.len()), (m * y.len(), m), "the inputs' columns and delays");
+    if m == 1 {
+        return vec![pole_test(u, y, seams, delays[0])];
+    }
+    let n = y.len();
+    let head = n.min(MAX_ROWS);
+    let seams = head_seams(seams, head);
+    let input = |i: usize| &u[i * n..i * n + head];
+    let y = &y[..head];
+    // Each input's noise-free output x_i, and the output its last fit saw (y less the others').
+    let mut parts = vec![vec![0.0; head]; m];
+    let mut seen = vec![vec![0.0; head]; m];
+    let mut fits: Vec<Option<(Structure, IvFit)>> = (0..m).map(|_| None).collect();
+    for _ in 0..ROUNDS {
+        for i in 0..m {
+            for (t, v) in seen[i].iter_mut().enumerate() {
+                *v = y[t] - (0..m).filter(|&j| j != i).map(|j| parts[j][t]).sum::<f64>();
+            }
+            fits[i] = fitted(input(i), &seen[i], &seams, delays[i]).map(|(prob, fit)| {
+                let plain = Problem { offset: false, ..prob };
+                plain.simulate(&fit.model, &mut parts[i]);
+                (prob.structure, fit)
+            });
+            if fits[i].is_none() {
+                parts[i].iter_mut().for_each(|v| *v = 0.0);
+            }
+        }
+    }
+    fits.iter()
+        .enumerate()
+        .map(|(i, fit)| {
+            let (structure, fit) = fit.as_ref()?;
+            let prob = Problem { u: input(i), y: &seen[i], structure: *structure, offset: true, seams: &seams };
+            test_poles(&prob, fit)
+        })
+        .collect()
+}
+
+/// The seams of a record's first `head` samples.
+fn head_seams(seams: &[usize], head: usize) -> Vec<usize> {
+    seams.iter().copied().filter(|&s| s < head).collect()
+}
+
+/// The test's model of one input's record (its head): the order (nA = nB = 1 or 2) whose IV
+/// fit has the smaller BIC, each order from the better of its two starts.
+fn fitted<'a>(u: &'a [f64], y: &'a [f64], seams: &'a [usize], delay: usize) -> Option<(Problem<'a>, IvFit)> {
     let fits: Vec<(Problem, IvFit)> = (1..=ORDER)
         .filter_map(|n| {
             let prob = Problem { u, y, structure: Structure::siso(n, n, delay), offset: true, seams };
@@ -136,16 +201,18 @@ pub fn pole_test(u: &[f64], y: &[f64], seams: &[usize], delay: usize) -> Option<
         .collect();
     let bic =
         |(p, f): &(Problem, IvFit)| f.rows as f64 * (f.scale * f.scale).ln() + p.dim() as f64 * (f.rows as f64).ln();
-    let (prob, fit) = fits.iter().min_by(|a, b| bic(a).total_cmp(&bic(b)))?;
-    test_poles(prob, fit)
+    let best = (0..fits.len()).min_by(|&a, &b| bic(&fits[a]).total_cmp(&bic(&fits[b])))?;
+    fits.into_iter().nth(best)
 }
 
 /// The IV estimate `[b, a, F(1) c, nuisance]` (the regression's own coefficients, A not
 /// stabilised), the model that simulated its instruments and the prefilter of its last pass,
-/// and the robust scale of its filtered equation errors over the rows used.
+/// and the robust scale of its filtered equation errors over the rows used; `model` is its
+/// `[b, a]` with A stabilised (the noise-free output of several inputs' backfitting).
 struct IvFit {
     theta: Vec<f64>,
     instruments: Vec<f64>,
+    model: Vec<f64>,
     filter: Vec<f64>,
     scale: f64,
     rows: usize,
@@ -206,7 +273,7 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
         filter.copy_from_slice(&model[prob.one().nb..]);
         capped(&mut filter);
     }
-    Some(IvFit { theta, instruments, filter: used, scale, rows })
+    Some(IvFit { theta, instruments, model, filter: used, scale, rows })
 }
 
 /// The sandwich variance of A(1) = `g^T theta` (g: ones at a): `g^T G^-1 S G^-T g = v^T S v`
@@ -423,12 +490,19 @@ pub fn judged_by_residuals(radius: f64) -> bool {
 /// head of [`MAX_ROWS`]), the initial state of each experiment fitted (the transient of a slow
 /// model started from rest is no drift): see [`drift_statistic`].
 pub fn residual_drift(prob: &Problem, theta: &[f64]) -> f64 {
-    let prob = prob.head(prob.n().min(MAX_ROWS));
+    let rows = prob.n().min(MAX_ROWS);
+    // Several inputs' heads are copied (their columns are not contiguous in a head).
+    let heads: Vec<f64>;
+    let prob = if prob.m() == 1 || rows == prob.n() {
+        prob.head(rows)
+    } else {
+        heads = (0..prob.m()).flat_map(|i| prob.input(i)[..rows].iter().copied()).collect();
+        let seams = &prob.seams[..prob.seams.partition_point(|&s| s < rows)];
+        Problem { u: &heads, y: &prob.y[..rows], seams, ..*prob }
+    };
     let mut r = prob.simulate_vec(theta);
-    let (b, f, _) = prob.split(theta);
-    for x in prob.experiments() {
-        add_free_response(f, b.len(), prob.one().delay, &prob.y[x.clone()], &mut r[x]);
-    }
+    let judge = Judge { initial_state: InitialState::Estimate, ..Judge::default() };
+    judge.judge_output(&prob, theta, prob.y, &mut r, &mut Scratch::default());
     r.iter_mut().zip(prob.y).for_each(|(r, y)| *r = y - *r);
     drift_statistic(&r, prob.seams)
 }
@@ -475,16 +549,68 @@ pub fn drift_statistic(r: &[f64], seams: &[usize]) -> f64 {
 /// drift (the stable models explain the record the test's pole came from). `record` names
 /// the record in the warning.
 pub fn doubt(test: &PoleTest, record: &str, judged: &[Judged]) -> Option<String> {
+    worded(test, record, judged, None)
+}
+
+/// [`doubt`] of the test of one input of several ([`pole_tests`]), `input` naming it ("input 2
+/// (fan)"): each [`Judged`] model's `radius` is then the largest pole radius of that input's
+/// F_i, and the warning names the input whose path looks integrating.
+pub fn input_doubt(test: &PoleTest, input: &str, record: &str, judged: &[Judged]) -> Option<String> {
+    worded(test, record, judged, Some(input))
+}
+
+/// The warnings of every input's test ([`pole_tests`]) judged against the models fitted to the
+/// record: one input's [`doubt`]; with several, [`input_doubt`] of each input whose test fired,
+/// named by its column in `names`. `judged(i)` gives the models judged for input i (each
+/// `radius` that of its F_i; asked only for a test that fired).
+pub fn doubts(
+    tests: &[Option<PoleTest>],
+    names: &[String],
+    record: &str,
+    mut judged: impl FnMut(usize) -> Vec<Judged>,
+) -> Vec<String> {
+    let fired = |i: usize| tests[i].as_ref().filter(|t| t.integrating);
+    match tests {
+        [_] => fired(0).and_then(|t| doubt(t, record, &judged(0))).into_iter().collect(),
+        _ => (0..tests.len())
+            .filter_map(|i| {
+                let test = fired(i)?;
+                let name = input_name(i, names.get(i).map_or("", String::as_str));
+                input_doubt(test, &name, record, &judged(i))
+            })
+            .collect(),
+    }
+}
+
+/// The largest pole radius of input i's F_i in `theta` (of structure `s`).
+pub fn input_radius(s: &Structure, theta: &[f64], i: usize) -> f64 {
+    oe::max_pole_radius(&theta[s.f_range(i)])
+}
+
+/// The input's words in the several-input warnings: "input 2 (fan)".
+pub fn input_name(i: usize, name: &str) -> String {
+    format!("input {} ({name})", i + 1)
+}
+
+fn worded(test: &PoleTest, record: &str, judged: &[Judged], input: Option<&str>) -> Option<String> {
     if !test.integrating {
         return None;
     }
     let what = pole_words(test);
     if judged.is_empty() || judged.iter().any(|j| !judged_by_residuals(j.radius)) {
-        return Some(format!(
-            "a low-order IV fit of {record} has {what}: the plant looks integrating (or unstable), and an \
-             output-error model forces a stable model onto it (identify from the differenced output, or in \
-             closed loop)"
-        ));
+        return Some(match input {
+            None => format!(
+                "a low-order IV fit of {record} has {what}: the plant looks integrating (or unstable), and an \
+                 output-error model forces a stable model onto it (identify from the differenced output, or in \
+                 closed loop)"
+            ),
+            Some(input) => format!(
+                "{input} looks integrating: a low-order IV fit of {record} from that input, the other inputs' \
+                 outputs taken out, has {what}; its path may integrate (or be unstable), and an output-error model \
+                 forces a stable model onto it (identify from the differenced output with the other inputs \
+                 differenced, or in closed loop)"
+            ),
+        });
     }
     let drifting: Vec<(&Judged, f64)> =
         judged.iter().filter_map(|j| j.drift.filter(|&d| d > DRIFT_LEVEL).map(|d| (j, d))).collect();
@@ -494,6 +620,15 @@ pub fn doubt(test: &PoleTest, record: &str, judged: &[Judged]) -> Option<String>
         models.push_str(&format!(" and of {} ({stat:.2}, {:.4})", j.name, j.radius));
     }
     let their = if rest.is_empty() { "its" } else { "their" };
+    if let Some(input) = input {
+        return Some(format!(
+            "the residuals of {models} drift (above {DRIFT_LEVEL}, the 5 % point for residuals about a level), \
+             though {their} poles are stable: a slow disturbance that the model does not explain, or {input} \
+             integrates (a low-order IV fit of {record} from that input, the other inputs' outputs taken out, has \
+             {what}); take the drift out of the record (detrend it, or high-pass every signal), or identify from \
+             the differenced output with the other inputs differenced if that input's path integrates"
+        ));
+    }
     Some(format!(
         "the residuals of {models} drift (above {DRIFT_LEVEL}, the 5 % point for residuals about a level), \
          though {their} poles are stable: a slow disturbance that the model does not explain, or an integrating \
