@@ -148,7 +148,7 @@ fn main() {
                 }
             }
             for j in 0..freqs.len() {
-                if (b.magnitude[j].lower..=b.magnitude[j].upper).contains(&true_gain[j]) {
+                if (b.magnitude[0][j].lower..=b.magnitude[0][j].upper).contains(&true_gain[j]) {
                     cover_b[dim + j] += 1;
                 }
             }

@@ -106,11 +106,16 @@ fn rec(u: Vec<f64>, y: Vec<f64>) -> Record {
 #[test]
 fn the_warning_names_the_pole_and_its_interval() {
     let (u, y) = record(&[0.1], &[-1.0], 3000, 0.2, 0.05, 16);
-    let inputs =
-        oesweep::job::inputs_of_records(rec(u, y), None, Offset::Estimate, &oesweep::oe::Structure::siso(2, 2, 1), 1)
-            .unwrap();
+    let inputs = oesweep::job::inputs_of_records(
+        rec(u, y),
+        None,
+        Offset::Estimate,
+        &oesweep::oe::Structure::siso(2, 2, 1),
+        &[1],
+    )
+    .unwrap();
     assert!(inputs.warnings.is_empty(), "the test's warning waits for the fits: {:?}", inputs.warnings);
-    let w = doubt(&inputs.pole_test.unwrap(), "plant.csv", &[]).expect("the integrating warning");
+    let w = doubt(&inputs.pole_tests[0].unwrap(), "plant.csv", &[]).expect("the integrating warning");
     assert!(w.contains("plant.csv") && w.contains("has a pole at ") && w.contains("95 % interval "), "{w}");
     assert!(w.contains("the plant looks integrating"), "{w}");
     let (lo, hi) = w.split("95 % interval ").nth(1).unwrap().split_once("..").unwrap();
@@ -120,10 +125,15 @@ fn the_warning_names_the_pole_and_its_interval() {
 
     let (u, y) = record(&[0.3], &[-0.7], 3000, 0.2, 0.05, 17);
     let y = y.iter().map(|v| v + 97.0).collect();
-    let inputs =
-        oesweep::job::inputs_of_records(rec(u, y), None, Offset::Estimate, &oesweep::oe::Structure::siso(2, 2, 1), 1)
-            .unwrap();
-    assert!(!inputs.pole_test.unwrap().integrating);
+    let inputs = oesweep::job::inputs_of_records(
+        rec(u, y),
+        None,
+        Offset::Estimate,
+        &oesweep::oe::Structure::siso(2, 2, 1),
+        &[1],
+    )
+    .unwrap();
+    assert!(!inputs.pole_tests[0].unwrap().integrating);
     assert!(inputs.warnings.is_empty(), "{:?}", inputs.warnings);
 }
 

@@ -156,7 +156,7 @@ fn arrays_of_several_inputs_must_be_as_long_as_the_output() {
     let y: Vec<f64> = (0..n).map(|t| (t as f64 * 0.11).cos()).collect();
     let rec = Record::from_input_arrays("<arrays>", vec![a, b], y).unwrap();
     let two = Structure::new(&[Orders { nb: 1, nf: 1, delay: 1 }; 2]).unwrap();
-    let e = job::inputs_of_records(rec, None, Offset::Estimate, &two, 1).err().unwrap().to_string();
+    let e = job::inputs_of_records(rec, None, Offset::Estimate, &two, &[1, 1]).err().unwrap().to_string();
     assert!(e.contains("input columns 'u1' and 'u2' are perfectly collinear"), "{e}");
 }
 

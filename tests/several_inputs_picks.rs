@@ -1,6 +1,7 @@
 //! The picks of a two-input sweep (METHOD.md 7.2, 17.3, 19): the look beyond the grid's edge
 //! grows the order of the input on the edge and finds the truth there; the job's bootstrap
-//! gives each picked model's parameter intervals, of the spread its sandwich std predicts.
+//! gives each picked model's parameter intervals, of the spread its sandwich std predicts, and
+//! each input's response intervals.
 
 mod common;
 
@@ -96,6 +97,19 @@ fn the_bootstrap_of_two_input_picks_matches_their_sandwich_std() {
             assert!((0.5..2.0).contains(&ratio), "{}: bootstrap std {spread}, sandwich {sandwich}", names[i]);
             let (lo, hi) = (intervals[i]["lower"].as_f64().unwrap(), intervals[i]["upper"].as_f64().unwrap());
             assert!(lo < value && value < hi, "{}: {value} outside [{lo}, {hi}]", names[i]);
+        }
+        // One list of response intervals per input, each holding that input's true |G_i| at
+        // the lowest frequency (near the static gains 2.67 and 2).
+        let magnitude = boot["intervals"]["magnitude"].as_array().unwrap();
+        let w = boot["intervals"]["frequencies"][0].as_f64().unwrap();
+        assert_eq!(magnitude.len(), 2, "{}", boot["intervals"]);
+        let paths: [(&[f64], &[f64], usize); 2] = [(&[0.5, 0.3], &[-1.2, 0.5], 1), (&[0.4], &[-0.8], 2)];
+        for (list, (b, f, d)) in magnitude.iter().zip(paths) {
+            let (re, im) = oesweep::oe::freq_response(b, f, d, w);
+            let gain = re.hypot(im);
+            let low = &list.as_array().unwrap()[0];
+            let (lo, hi) = (low["lower"].as_f64().unwrap(), low["upper"].as_f64().unwrap());
+            assert!(lo < gain * 1.01 && gain * 0.99 < hi, "|G| at {w}: [{lo}, {hi}], true {gain}");
         }
         checked += 1;
     }

@@ -115,7 +115,7 @@ fn the_bootstrap_of_a_linear_model_finds_its_known_covariance() {
         let g: Vec<f64> =
             (0..3).map(|k| (re * (w * (k + 1) as f64).cos() - im * (w * (k + 1) as f64).sin()) / truth).collect();
         let sd = (0..3).map(|k| (0..3).map(|l| g[k] * cov[k * 3 + l] * g[l]).sum::<f64>()).sum::<f64>().sqrt();
-        let m = boot.magnitude[j];
+        let m = boot.magnitude[0][j];
         let half = (m.upper - m.lower) / 2.0;
         assert!((half / (1.96 * sd) - 1.0).abs() < 0.2, "w = {w}: {m:?}, delta-method std {sd}");
         assert!((0.5 * (m.upper + m.lower) - truth).abs() < 3.0 * sd, "w = {w}: {m:?}, true |G| {truth}");

@@ -567,24 +567,36 @@ def spectrum(u: ArrayLike, y: ArrayLike, ts: float, method: str = "robust"):
     ``"welch"`` is plain Welch). Returns a polars DataFrame with one row per frequency bin where
     the input has power: ``freq_hz``, ``re``, ``im``, ``magnitude``, ``phase_deg``,
     ``coherence`` and an approximate 95 % band of the magnitude, ``mag_lower``, ``mag_upper``
-    (``.to_pandas()`` with pandas installed)."""
+    (``.to_pandas()`` with pandas installed).
+
+    Several inputs: ``u`` a 2-D array (samples in rows, one column per input) or a list of 1-D
+    arrays, as ``fit`` takes them; the result is then a list of DataFrames, one per input, of
+    the same columns and bins: input i's ``G_i`` of ``H = P^-1 s`` (the inputs' cross-spectral
+    matrix P, docs/METHOD.md 19), its band, and in every one the multiple coherence."""
     import polars as pl
 
-    u, y = _f64("u", u), _f64("y", y)
-    report = json.loads(_oesweep.spectrum(u, y, float(ts), method))
-    g = np.array(report["re"]) + 1j * np.array(report["im"])
-    return pl.DataFrame(
-        {
-            "freq_hz": report["freq_hz"],
-            "re": report["re"],
-            "im": report["im"],
-            "magnitude": np.abs(g),
-            "phase_deg": np.degrees(np.angle(g)),
-            "coherence": report["coherence"],
-            "mag_lower": report["mag_lower"],
-            "mag_upper": report["mag_upper"],
-        }
-    )
+    us, y = _inputs("u", u), _f64("y", y)
+    report = json.loads(_oesweep.spectrum(us, y, float(ts), method))
+
+    def frame(re, im, lower, upper):
+        g = np.array(re) + 1j * np.array(im)
+        return pl.DataFrame(
+            {
+                "freq_hz": report["freq_hz"],
+                "re": re,
+                "im": im,
+                "magnitude": np.abs(g),
+                "phase_deg": np.degrees(np.angle(g)),
+                "coherence": report["coherence"],
+                "mag_lower": lower,
+                "mag_upper": upper,
+            }
+        )
+
+    keys = ("re", "im", "mag_lower", "mag_upper")
+    if len(us) == 1:
+        return frame(*(report[k] for k in keys))
+    return [frame(*(report[k][i] for k in keys)) for i in range(len(us))]
 
 
 def load(folder: Union[str, os.PathLike]) -> Sweep:

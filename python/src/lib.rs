@@ -48,6 +48,16 @@ fn floats(name: &str, array: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
     buf.to_vec(array.py())
 }
 
+/// One float64 array per input, named `label` (one input) or `label[i]` in errors.
+fn input_floats(label: &str, arrays: &[Bound<'_, PyAny>]) -> PyResult<Vec<Vec<f64>>> {
+    let one = arrays.len() == 1;
+    arrays
+        .iter()
+        .enumerate()
+        .map(|(i, a)| floats(&if one { label.to_string() } else { format!("{label}[{i}]") }, a))
+        .collect()
+}
+
 fn parse<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> PyResult<T> {
     serde_json::from_value(serde_json::Value::String(v.into()))
         .map_err(|e| JobError::new_err(format!("{what} {v:?}: {e}")))
@@ -72,19 +82,15 @@ fn fit(
     val_u: Option<Vec<Bound<'_, PyAny>>>,
     val_y: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<String> {
-    let inputs = |label: &str, arrays: &[Bound<'_, PyAny>]| -> PyResult<Vec<Vec<f64>>> {
-        let one = arrays.len() == 1;
-        arrays
-            .iter()
-            .enumerate()
-            .map(|(i, a)| floats(&if one { label.to_string() } else { format!("{label}[{i}]") }, a))
-            .collect()
-    };
-    let est = Record::from_input_arrays("<u, y arrays>", inputs("u", &u)?, floats("y", y)?).map_err(to_py)?;
+    let est = Record::from_input_arrays("<u, y arrays>", input_floats("u", &u)?, floats("y", y)?).map_err(to_py)?;
     let val = match (val_u, val_y) {
         (Some(vu), Some(vy)) => Some(
-            Record::from_input_arrays("<validation arrays>", inputs("validation u", &vu)?, floats("validation y", vy)?)
-                .map_err(to_py)?,
+            Record::from_input_arrays(
+                "<validation arrays>",
+                input_floats("validation u", &vu)?,
+                floats("validation y", vy)?,
+            )
+            .map_err(to_py)?,
         ),
         (None, None) => None,
         _ => return Err(DataError::new_err("validation needs both u and y")),
@@ -227,10 +233,11 @@ fn run(
     }
 }
 
-/// The spectral estimate of float64 arrays (`oesweep spectrum --json`'s report as JSON text).
+/// The spectral estimate of float64 arrays, `u` one array per input (`oesweep spectrum --json`'s
+/// report as JSON text: several inputs' `re`, `im`, `mag_lower`, `mag_upper` one list each).
 #[pyfunction]
-fn spectrum(py: Python<'_>, u: &Bound<'_, PyAny>, y: &Bound<'_, PyAny>, ts: f64, method: &str) -> PyResult<String> {
-    let rec = Record::from_arrays("<u, y arrays>", floats("u", u)?, floats("y", y)?).map_err(to_py)?;
+fn spectrum(py: Python<'_>, u: Vec<Bound<'_, PyAny>>, y: &Bound<'_, PyAny>, ts: f64, method: &str) -> PyResult<String> {
+    let rec = Record::from_input_arrays("<u, y arrays>", input_floats("u", &u)?, floats("y", y)?).map_err(to_py)?;
     let method = parse::<SpectrumMethod>("method", method)?;
     let report = py.detach(|| engine::spectrum_arrays(&rec, ts, method)).map_err(to_py)?;
     serde_json::to_string(&report).map_err(|e| PyRuntimeError::new_err(e.to_string()))

@@ -1,5 +1,8 @@
 """Several inputs through the package: `fit` with a 2-D array or a list of inputs, the model's
-per-input fields and methods, `read` of several columns, and the clear errors (issue 46)."""
+per-input fields and methods, `read` of several columns, `spectrum` per input, and the clear
+errors (issue 46)."""
+
+import json
 
 import json
 
@@ -8,6 +11,7 @@ import pytest
 import scipy.signal
 
 import oesweep
+from support import cli
 
 # Per input: b, f, delay (a second-order input and a slow first-order one).
 SYSTEM = [([0.5, 0.3], [-1.2, 0.6], 1), ([0.8], [-0.9], 2)]
@@ -152,3 +156,38 @@ def test_read_gives_several_input_columns_as_one_array(tmp_path):
     assert got_u.shape == (200, 2)
     np.testing.assert_array_equal(got_u, u)
     np.testing.assert_array_equal(got_y, y)
+
+
+def test_spectrum_of_several_inputs_is_one_frame_per_input_as_the_command_line_gives(tmp_path):
+    # Noise-free, 8192 samples: each input's estimate lies on its own system's response where
+    # the inputs have power, and the numbers are those of `oesweep spectrum --u u1,u2`.
+    u, y = miso_record(n=8192, seed=9)
+    frames = oesweep.spectrum(u, y, 1.0, method="welch")
+    assert isinstance(frames, list) and len(frames) == 2
+    assert frames[0]["freq_hz"].to_list() == frames[1]["freq_hz"].to_list()
+    assert frames[0]["coherence"].to_list() == frames[1]["coherence"].to_list()
+    for frame, (b, f, d) in zip(frames, SYSTEM):
+        assert frame.columns == ["freq_hz", "re", "im", "magnitude", "phase_deg", "coherence", "mag_lower", "mag_upper"]
+        low = frame.filter(frame["freq_hz"] < 0.15)  # below the held inputs' first notch, 0.2
+        _, want = scipy.signal.freqz([0.0] * d + b, [1.0] + f, worN=2 * np.pi * low["freq_hz"].to_numpy())
+        got = low["re"].to_numpy() + 1j * low["im"].to_numpy()
+        assert np.all(np.abs(got - want) <= 0.1 * np.abs(want)), np.max(np.abs(got - want) / np.abs(want))
+    # A list of inputs is the 2-D array.
+    as_list = oesweep.spectrum([u[:, 0], u[:, 1]], y, 1.0, method="welch")
+    assert all(a.equals(b) for a, b in zip(frames, as_list))
+    # The command line on the same record.
+    path = tmp_path / "r.csv"
+    with open(path, "w") as fh:
+        fh.write("u1,u2,y\n")
+        for a, b, c in zip(u[:, 0], u[:, 1], y):
+            fh.write(f"{float(a)!r},{float(b)!r},{float(c)!r}\n")
+    o = cli("spectrum", "--data", str(path), "--u", "u1,u2", "--ts", "1", "--method", "welch", "--json")
+    assert o.returncode == 0, o.stderr
+    want = json.loads(o.stdout)
+    for i, frame in enumerate(frames):
+        for key in ("re", "im", "mag_lower", "mag_upper"):
+            assert frame[key].to_list() == want[key][i], (i, key)
+        assert frame["coherence"].to_list() == want["coherence"]
+    # One column of a 2-D array is one input: one frame, not a list.
+    one = oesweep.spectrum(u[:, :1], y, 1.0, method="welch")
+    assert one.columns[0] == "freq_hz"

@@ -138,14 +138,20 @@ fn print_intervals(
     }
     let hz =
         |w: f64| ts.map_or(format!("{:.4} rad/sample", w), |ts| format!("{:.4} Hz", w / (std::f64::consts::TAU * ts)));
-    outln!("{:<22}{:>36}{:>36}", "frequency", "|G| interval", "phase interval (deg)");
-    for ((w, m), p) in b.frequencies.iter().zip(&b.magnitude).zip(&b.phase_deg) {
-        outln!(
-            "{:<22}{:>36}{:>36}",
-            hz(*w),
-            format!("[{:.5e}, {:.5e}]", m.lower, m.upper),
-            format!("[{:.2}, {:.2}]", p.lower, p.upper)
-        );
+    // One table per input (one input: G's, as before).
+    let several = b.magnitude.len() > 1;
+    for (i, (mags, phases)) in b.magnitude.iter().zip(&b.phase_deg).enumerate() {
+        let g = if several { format!("|G_{}| interval", i + 1) } else { "|G| interval".to_string() };
+        let phase = if several { format!("phase of G_{} (deg)", i + 1) } else { "phase interval (deg)".to_string() };
+        outln!("{:<22}{:>36}{:>36}", "frequency", g, phase);
+        for ((w, m), p) in b.frequencies.iter().zip(mags).zip(phases) {
+            outln!(
+                "{:<22}{:>36}{:>36}",
+                hz(*w),
+                format!("[{:.5e}, {:.5e}]", m.lower, m.upper),
+                format!("[{:.2}, {:.2}]", p.lower, p.upper)
+            );
+        }
     }
 }
 

@@ -226,9 +226,9 @@ fn fit_records(
     val_path: Option<PathBuf>,
 ) -> Result<FitReport> {
     let largest = &req.structure;
-    let delay0 = largest.inputs().iter().map(|o| o.delay).min().unwrap_or(0);
-    let job::Inputs { est, val, levels, warnings, pole_test } =
-        job::inputs_of_records(est, val, req.offset, largest, delay0)?;
+    let delays: Vec<usize> = largest.inputs().iter().map(|o| o.delay).collect();
+    let job::Inputs { est, val, levels, warnings, pole_tests } =
+        job::inputs_of_records(est, val, req.offset, largest, &delays)?;
     let first = largest.inputs()[0];
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
@@ -258,13 +258,20 @@ fn fit_records(
     let quadratic = cov.as_ref().map(|c| estimate::quadratic::check(&prob, &theta, loss, c));
     let mut warnings = warnings;
     let model = largest.label();
-    // The integrating-plant test judged against this fit (METHOD.md 7.3).
-    if let Some(test) = pole_test.filter(|t| t.integrating) {
+    // The integrating-plant test of each input judged against this fit (METHOD.md 7.3, 19).
+    {
         use estimate::integrating::{self, Judged};
-        let radius = huber.assessment.max_pole_radius;
-        let drift = integrating::judged_by_residuals(radius).then(|| integrating::residual_drift(&prob, &theta));
-        let judged = Judged { name: model.clone(), radius, drift };
-        warnings.extend(integrating::doubt(&test, &est.path.display().to_string(), &[judged]));
+        let drift = std::cell::OnceCell::new();
+        let record = est.path.display().to_string();
+        warnings.extend(integrating::doubts(&pole_tests, &est.u_names, &record, |i| {
+            let radius = match largest.m() {
+                1 => huber.assessment.max_pole_radius,
+                _ => integrating::input_radius(largest, &theta, i),
+            };
+            let drift = integrating::judged_by_residuals(radius)
+                .then(|| *drift.get_or_init(|| integrating::residual_drift(&prob, &theta)));
+            vec![Judged { name: model.clone(), radius, drift }]
+        }));
     }
     warnings.extend(estimate::quadratic::doubt(
         &model,

@@ -3,7 +3,7 @@
 //! warning when a pick's criterion is far from quadratic over its confidence region
 //! ([`estimate::quadratic`]), where the sandwich covariance does not describe the uncertainty
 //! (`reduce::doubts` says it of a pick on the stability boundary); the record's
-//! integrating-plant test judged against them ([`integrating_doubt`], METHOD.md 7.3); and, when
+//! integrating-plant test judged against them ([`integrating_doubts`], METHOD.md 7.3); and, when
 //! the job asks (`"uncertainty": "bootstrap"`), the bootstrap of their whole estimation
 //! (METHOD.md 17.3).
 
@@ -119,31 +119,41 @@ pub fn pick_doubts(sel: &Selection, models: &PickModels, inputs: &Inputs, bootst
         .collect()
 }
 
-/// The integrating-plant test of the estimation record judged against the watched picks
-/// (METHOD.md 7.3): its warning, or the drift of the picks' residuals, or nothing when the
-/// stable picks explain the record. Their residuals are looked at only when the test fired.
-pub fn integrating_doubt(sel: &Selection, inputs: &Inputs) -> Option<String> {
+/// The integrating-plant test of the estimation record, each input's, judged against the
+/// watched picks (METHOD.md 7.3, 19): its warning, or the drift of the picks' residuals, or
+/// nothing when the stable picks explain the record. Their residuals are looked at only when a
+/// test fired (once per model).
+pub fn integrating_doubts(sel: &Selection, inputs: &Inputs) -> Vec<String> {
     use estimate::integrating::{self, Judged};
-    let test = inputs.pole_test.as_ref().filter(|t| t.integrating)?;
-    let judged: Vec<Judged> = watched_models(sel)
-        .into_iter()
-        .map(|(rules, row)| {
-            let names = rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
-            let name = format!("{} (picked by {names})", row.key.label());
-            let radius = row.fit.max_pole_radius.unwrap_or(0.0);
-            let drift = integrating::judged_by_residuals(radius).then(|| {
+    if !inputs.pole_tests.iter().flatten().any(|t| t.integrating) {
+        return Vec::new();
+    }
+    let models = watched_models(sel);
+    let drifts: Vec<std::cell::OnceCell<f64>> = models.iter().map(|_| std::cell::OnceCell::new()).collect();
+    let record = inputs.est.path.display().to_string();
+    integrating::doubts(&inputs.pole_tests, &inputs.est.u_names, &record, |i| {
+        models
+            .iter()
+            .zip(&drifts)
+            .map(|((rules, row), drift)| {
+                let names = rules.iter().map(|r| r.as_str()).collect::<Vec<_>>().join(", ");
+                let name = format!("{} (picked by {names})", row.key.label());
                 let theta = theta(row, inputs);
-                integrating::residual_drift(&problem(row, inputs), &theta)
-            });
-            Judged { name, radius, drift }
-        })
-        .collect();
-    integrating::doubt(test, &inputs.est.path.display().to_string(), &judged)
+                let radius = match row.key.m() {
+                    1 => row.fit.max_pole_radius.unwrap_or(0.0),
+                    _ => integrating::input_radius(&row.key.structure(), &theta, i),
+                };
+                let drift = integrating::judged_by_residuals(radius)
+                    .then(|| *drift.get_or_init(|| integrating::residual_drift(&problem(row, inputs), &theta)));
+                Judged { name, radius, drift }
+            })
+            .collect()
+    })
 }
 
 /// The bootstrap of every watched model's whole estimation on the job's estimation record
-/// (METHOD.md 17.3), replicates in parallel on the current rayon pool. Several inputs: the
-/// parameters' intervals (theta's order, every input's b_i, f_i), no response intervals.
+/// (METHOD.md 17.3), replicates in parallel on the current rayon pool: the parameters'
+/// intervals (theta's order, every input's b_i, f_i) and each input's response intervals.
 pub fn bootstrap_picks(
     sel: &Selection,
     models: &PickModels,

@@ -79,7 +79,7 @@ fn picks(job: &ValidJob, rows: &[CellRow], inputs: Option<&Inputs>) -> Selection
     }
     selection.initial_state = Some(job.job.initial_state);
     selection.warnings = inputs.map(|i| i.warnings.clone()).unwrap_or_default();
-    selection.warnings.extend(inputs.and_then(|i| uncertainty::integrating_doubt(&selection, i)));
+    selection.warnings.extend(inputs.map(|i| uncertainty::integrating_doubts(&selection, i)).unwrap_or_default());
     let bounds = |v: &[usize]| (v[0] as u32, v[v.len() - 1] as u32);
     // Each input's grid (one input: the job's): the edge warnings and the look beyond name
     // the input on the edge.

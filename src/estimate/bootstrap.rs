@@ -11,12 +11,12 @@
 //!            (fit_ls alone for a least-squares model)
 //! ```
 //!
-//! The intervals are the percentile intervals of theta*_r (and of |G| and the phase of G at a
-//! few frequencies): `[q_{(1-level)/2}, q_{(1+level)/2}]` of the B replicates, linearly
-//! interpolated. Blocks keep the residuals' colour (an output-error model leaves coloured
-//! noise in them) and their spikes in place with their neighbours; L = round(N^(1/3)) is the
-//! order of the optimal block length for distribution estimates (Hall, Horowitz and Jing
-//! 1995). Replicate r draws from its own stream of the seed ([`Settings::seed`]) and the
+//! The intervals are the percentile intervals of theta*_r (and of |G_i| and the phase of G_i,
+//! each input's response, at a few frequencies): `[q_{(1-level)/2}, q_{(1+level)/2}]` of the B
+//! replicates, linearly interpolated. Blocks keep the residuals' colour (an output-error model
+//! leaves coloured noise in them) and their spikes in place with their neighbours; L =
+//! round(N^(1/3)) is the order of the optimal block length for distribution estimates (Hall,
+//! Horowitz and Jing 1995). Replicate r draws from its own stream of the seed ([`Settings::seed`]) and the
 //! replicates run in parallel on the current rayon pool (one [`Workspace`] each; the callers
 //! install their own, [`crate::pool::local`]): the result does not depend on the thread count.
 
@@ -115,11 +115,43 @@ pub struct Bootstrap {
     pub level: f64,
     /// Per parameter, in the order of theta (b, f, offset): the percentile interval.
     pub parameters: Vec<Interval>,
-    /// The frequencies (rad/sample) and the intervals of |G| and of the phase of G (degrees,
-    /// unwrapped to within 180 of the fit's own phase).
+    /// The frequencies (rad/sample) and, one list per input, the intervals of |G_i| and of the
+    /// phase of G_i = q^-d_i B_i/F_i (degrees, unwrapped to within 180 of the fit's own phase)
+    /// at them. In JSON one input's lists are the list itself, several inputs' a list of lists
+    /// ([`per_input`]).
     pub frequencies: Vec<f64>,
-    pub magnitude: Vec<Interval>,
-    pub phase_deg: Vec<Interval>,
+    #[serde(with = "per_input")]
+    pub magnitude: Vec<Vec<Interval>>,
+    #[serde(with = "per_input")]
+    pub phase_deg: Vec<Vec<Interval>>,
+}
+
+/// The response intervals as JSON holds them: one input's list as it is, several inputs' as a
+/// list of lists (`selection.json`'s rule of per-input fields).
+mod per_input {
+    use super::Interval;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(lists: &[Vec<Interval>], s: S) -> Result<S::Ok, S::Error> {
+        match lists {
+            [single] => s.collect_seq(single),
+            several => s.collect_seq(several),
+        }
+    }
+
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Form {
+        One(Vec<Interval>),
+        Several(Vec<Vec<Interval>>),
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Vec<Interval>>, D::Error> {
+        Ok(match Form::deserialize(d)? {
+            Form::One(v) => vec![v],
+            Form::Several(v) => v,
+        })
+    }
 }
 
 /// The bootstrap of the model `theta` of `prob`'s structure: estimated at tuning constant `k`
@@ -150,23 +182,27 @@ pub fn run(prob: &Problem, theta: &[f64], k: Option<f64>, settings: &Settings, o
     let ok: Vec<&(Vec<f64>, bool)> = replicates.iter().flatten().collect();
     let interval = |mut v: Vec<f64>| percentile_interval(&mut v, settings.level);
     let parameters = (0..theta.len()).map(|i| interval(ok.iter().map(|t| t.0[i]).collect())).collect();
-    let mut magnitude = Vec::new();
-    let mut phase_deg = Vec::new();
-    // The response's intervals are one input's (several inputs: the parameters' only, so far).
-    let frequencies = if prob.m() == 1 { &settings.frequencies[..] } else { &[] };
-    for &w in frequencies {
-        let (b0, f0, _) = prob.split(theta);
-        let phase0 = phase(b0, f0, prob.one().delay, w);
-        let (mut mags, mut phases) = (Vec::with_capacity(ok.len()), Vec::with_capacity(ok.len()));
-        for (t, _) in &ok {
-            let (b, f, _) = prob.split(t);
-            let (re, im) = oe::freq_response(b, f, prob.one().delay, w);
-            mags.push(re.hypot(im));
-            let d = (im.atan2(re).to_degrees() - phase0 + 180.0).rem_euclid(360.0) - 180.0;
-            phases.push(phase0 + d);
+    // Each input's response at each frequency, over the replicates.
+    let (mut magnitude, mut phase_deg) = (Vec::with_capacity(prob.m()), Vec::with_capacity(prob.m()));
+    for i in 0..prob.m() {
+        let delay = prob.structure.inputs()[i].delay;
+        let (b0, f0) = prob.input_parts(theta, i);
+        let (mut mag_i, mut phase_i) = (Vec::new(), Vec::new());
+        for &w in &settings.frequencies {
+            let phase0 = phase(b0, f0, delay, w);
+            let (mut mags, mut phases) = (Vec::with_capacity(ok.len()), Vec::with_capacity(ok.len()));
+            for (t, _) in &ok {
+                let (b, f) = prob.input_parts(t, i);
+                let (re, im) = oe::freq_response(b, f, delay, w);
+                mags.push(re.hypot(im));
+                let d = (im.atan2(re).to_degrees() - phase0 + 180.0).rem_euclid(360.0) - 180.0;
+                phases.push(phase0 + d);
+            }
+            mag_i.push(interval(mags));
+            phase_i.push(interval(phases));
         }
-        magnitude.push(interval(mags));
-        phase_deg.push(interval(phases));
+        magnitude.push(mag_i);
+        phase_deg.push(phase_i);
     }
     Bootstrap {
         replicates: settings.replicates,
@@ -176,7 +212,7 @@ pub fn run(prob: &Problem, theta: &[f64], k: Option<f64>, settings: &Settings, o
         seed: settings.seed,
         level: settings.level,
         parameters,
-        frequencies: frequencies.to_vec(),
+        frequencies: settings.frequencies.clone(),
         magnitude,
         phase_deg,
     }

@@ -4,7 +4,7 @@
 use super::{Records, ValidJob};
 use crate::data::{self, Levels, Offset, Record};
 use crate::error::Result;
-use crate::estimate::integrating::{PoleTest, pole_test};
+use crate::estimate::integrating::{PoleTest, pole_tests};
 use crate::oe::Structure;
 
 /// The records a job names, read and checked, with their levels taken out.
@@ -15,29 +15,31 @@ pub struct Inputs {
     pub levels: Levels,
     /// Things the user should know about the data (printed once, kept in selection.json).
     pub warnings: Vec<String>,
-    /// The integrating-plant test of the estimation record (METHOD.md 7.3; None when its
-    /// regressions are degenerate): its warning waits for the models fitted to the record
-    /// ([`crate::estimate::integrating::doubt`]).
-    pub pole_test: Option<PoleTest>,
+    /// The integrating-plant test of the estimation record, one per input (METHOD.md 7.3, 19;
+    /// None where its regressions are degenerate; empty when the record was not tested): its
+    /// warnings wait for the models fitted to the record
+    /// ([`crate::estimate::integrating::doubt`], [`crate::estimate::integrating::input_doubt`]).
+    pub pole_tests: Vec<Option<PoleTest>>,
 }
 
 /// Read the job's data files and check them against the largest orders of the grid.
 pub fn load_inputs(vj: &ValidJob) -> Result<Inputs> {
-    read_inputs(&vj.job.data, vj.job.validation.as_ref(), vj.job.offset, &vj.largest_structure(), vj.delays[0])
+    let delays: Vec<usize> = vj.grids.iter().map(|g| g.delays.iter().copied().min().unwrap_or(0)).collect();
+    read_inputs(&vj.job.data, vj.job.validation.as_ref(), vj.job.offset, &vj.largest_structure(), &delays)
 }
 
 /// The one loader of records, for a job and for `oesweep fit`: read the estimation and the
 /// validation record as their specs say (the validation output column resolved, see
 /// [`resolve_validation`]), check both against the largest model `largest`
 /// ([`data::check_for_structure`]: length, constant columns, collinear inputs), and take out
-/// the levels of `offset` ([`Levels::of`], computed here only). `delay` is the one of the
-/// integrating-plant test (the grid's smallest; one input only so far).
+/// the levels of `offset` ([`Levels::of`], computed here only). `delays`, one per input, are
+/// those of the integrating-plant test (each input's smallest in the grid).
 pub fn read_inputs(
     data: &Records,
     validation: Option<&Records>,
     offset: Offset,
     largest: &Structure,
-    delay: usize,
+    delays: &[usize],
 ) -> Result<Inputs> {
     // Each experiment long enough on its own: the simulation restarts in every one.
     let concat = |specs: &Records| -> Result<Record> {
@@ -61,13 +63,13 @@ pub fn read_inputs(
         let integrating = est
             .as_ref()
             .ok()
-            .filter(|e| e.inputs() == 1 && data::check_for_structure(e, largest).is_ok())
-            .map(|e| pole_test(&e.u, &e.y, &e.seams, delay));
+            .filter(|e| e.inputs() == delays.len() && data::check_for_structure(e, largest).is_ok())
+            .map(|e| pole_tests(&e.u, e.inputs(), &e.y, &e.seams, delays));
         let val = val.map(|h| h.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)));
         (est, val, integrating)
     });
     let (est, val) = (est?, val.transpose()?);
-    inputs_with(est, val, offset, largest, |_| integrating.flatten())
+    inputs_with(est, val, offset, largest, |_| integrating.unwrap_or_default())
 }
 
 /// The records of `data` or `validation` as read, one per experiment.
@@ -76,17 +78,22 @@ fn read_experiments(specs: &Records) -> Result<Vec<Record>> {
 }
 
 /// [`read_inputs`] of records already in memory: checked against the largest model, levels
-/// taken out, the data's warnings and the integrating-plant test with input delay `delay`.
-/// The records must have the inputs of `largest` (one input: a record of one, and so on).
+/// taken out, the data's warnings and the integrating-plant test with input delays `delays`
+/// (one per input). The records must have the inputs of `largest` (one input: a record of one,
+/// and so on).
 pub fn inputs_of_records(
     est: Record,
     val: Option<Record>,
     offset: Offset,
     largest: &Structure,
-    delay: usize,
+    delays: &[usize],
 ) -> Result<Inputs> {
     inputs_with(est, val, offset, largest, |est| {
-        (est.inputs() == 1).then(|| pole_test(&est.u, &est.y, &est.seams, delay)).flatten()
+        if est.inputs() == delays.len() {
+            pole_tests(&est.u, est.inputs(), &est.y, &est.seams, delays)
+        } else {
+            Vec::new()
+        }
     })
 }
 
@@ -98,7 +105,7 @@ fn inputs_with(
     mut val: Option<Record>,
     offset: Offset,
     largest: &Structure,
-    integrating: impl FnOnce(&Record) -> Option<PoleTest>,
+    integrating: impl FnOnce(&Record) -> Vec<Option<PoleTest>>,
 ) -> Result<Inputs> {
     for rec in std::iter::once(&est).chain(&val) {
         if rec.inputs() != largest.m() {
@@ -111,12 +118,12 @@ fn inputs_with(
     }
     let levels = Levels::of(offset, &est);
     let warnings: Vec<String> = data::levels::offset_warning(offset, &est).into_iter().collect();
-    let pole_test = integrating(&est);
+    let pole_tests = integrating(&est);
     levels.apply(&mut est);
     if let Some(v) = val.as_mut() {
         levels.apply(v);
     }
-    Ok(Inputs { est, val, levels, warnings, pole_test })
+    Ok(Inputs { est, val, levels, warnings, pole_tests })
 }
 
 /// The records of a checked job, as read from the files (levels not taken out): for the

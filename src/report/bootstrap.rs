@@ -47,21 +47,30 @@ pub(super) fn bootstrap_section(sel: &Selection) -> Section {
                 plot::sig(iv.upper, 6)
             );
         }
-        h.push_str(
-            "</table></div>\n<div><table>\n<tr><th>f [Hz]</th><th>|G| interval</th><th>phase interval [°]</th></tr>\n",
-        );
-        for ((w, m), ph) in b.frequencies.iter().zip(&b.magnitude).zip(&b.phase_deg) {
+        h.push_str("</table></div>\n");
+        // One table per input's response (one input: G's).
+        let several = b.magnitude.len() > 1;
+        for (i, (mags, phases)) in b.magnitude.iter().zip(&b.phase_deg).enumerate() {
+            let g = if several { format!("G<sub>{}</sub>", i + 1) } else { "G".to_string() };
             let _ = writeln!(
                 h,
-                "<tr><td>{}</td><td>[{}, {}]</td><td>[{:.1}, {:.1}]</td></tr>",
-                plot::sig(w / (std::f64::consts::TAU * p.ts), 4),
-                plot::sig(m.lower, 4),
-                plot::sig(m.upper, 4),
-                ph.lower,
-                ph.upper
+                "<div><table>\n<tr><th>f [Hz]</th><th>|{g}| interval</th><th>phase{} interval [°]</th></tr>",
+                if several { format!(" of {g}") } else { String::new() }
             );
+            for ((w, m), ph) in b.frequencies.iter().zip(mags).zip(phases) {
+                let _ = writeln!(
+                    h,
+                    "<tr><td>{}</td><td>[{}, {}]</td><td>[{:.1}, {:.1}]</td></tr>",
+                    plot::sig(w / (std::f64::consts::TAU * p.ts), 4),
+                    plot::sig(m.lower, 4),
+                    plot::sig(m.upper, 4),
+                    ph.lower,
+                    ph.upper
+                );
+            }
+            h.push_str("</table></div>");
         }
-        h.push_str("</table></div></div>\n");
+        h.push_str("</div>\n");
     }
     h.push_str(
         "<p class=\"meta\">A parametric residual-block bootstrap of the whole estimation (starts included): each \

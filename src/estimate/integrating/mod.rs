@@ -54,7 +54,6 @@
 //! the boundary (METHOD.md 7.3 measures where).
 
 use super::initial_guess::{arx, regressor};
-use super::initial_state::add_free_response;
 use super::least_squares::BOUNDARY;
 use super::problem::Problem;
 use crate::oe;
@@ -114,8 +113,72 @@ pub fn pole_test(u: &[f64], y: &[f64], seams: &[usize], delay: usize) -> Option<
     // more than a whole sweep of a 1e6-sample record.
     let head = u.len().min(MAX_ROWS);
     let (u, y) = (&u[..head], &y[..head]);
-    let seams: Vec<usize> = seams.iter().copied().filter(|&s| s < head).collect();
-    let seams = &seams[..];
+    let seams = head_seams(seams, head);
+    let (prob, fit) = fitted(u, y, &seams, delay)?;
+    test_poles(&prob, &fit)
+}
+
+/// Rounds of the several-input test: each input's fit to the output less the other inputs'
+/// contributions, input after input.
+const ROUNDS: usize = 3;
+
+/// The integrating-plant test of each input of a record of `m` inputs (`u` input after input,
+/// N samples each; `delays` one per input): one entry per input, None where its regressions
+/// are degenerate. One input is [`pole_test`]. Several (METHOD.md 7.3, 19): Young's refined IV
+/// of a model with a denominator per input, by backfitting: input i's one-input test model
+/// `A_i y_i = B_i u_i + c + v` is fitted to `y_i = y - sum_{j != i} x_j`, the output less the
+/// other inputs' noise-free outputs `x_j = (B_j/A_j) u_j` of their current fits (zero before
+/// their first), input after input, [`ROUNDS`] rounds; each input is then tested on its last
+/// fit as one input is. Another input's integrator is thus taken out of the output before input
+/// i is looked at (in `y` itself it is a drift that input i's low-order fit would put a pole
+/// at 1 for), and an input whose path integrates leaves A_i(1) = 0 however the others behave.
+pub fn pole_tests(u: &[f64], m: usize, y: &[f64], seams: &[usize], delays: &[usize]) -> Vec<Option<PoleTest>> {
+    assert_eq!((u.len(), delays.len()), (m * y.len(), m), "the inputs' columns and delays");
+    if m == 1 {
+        return vec![pole_test(u, y, seams, delays[0])];
+    }
+    let n = y.len();
+    let head = n.min(MAX_ROWS);
+    let seams = head_seams(seams, head);
+    let input = |i: usize| &u[i * n..i * n + head];
+    let y = &y[..head];
+    // Each input's noise-free output x_i, and the output its last fit saw (y less the others').
+    let mut parts = vec![vec![0.0; head]; m];
+    let mut seen = vec![vec![0.0; head]; m];
+    let mut fits: Vec<Option<(Structure, IvFit)>> = (0..m).map(|_| None).collect();
+    for _ in 0..ROUNDS {
+        for i in 0..m {
+            for (t, v) in seen[i].iter_mut().enumerate() {
+                *v = y[t] - (0..m).filter(|&j| j != i).map(|j| parts[j][t]).sum::<f64>();
+            }
+            fits[i] = fitted(input(i), &seen[i], &seams, delays[i]).map(|(prob, fit)| {
+                let plain = Problem { offset: false, ..prob };
+                plain.simulate(&fit.model, &mut parts[i]);
+                (prob.structure, fit)
+            });
+            if fits[i].is_none() {
+                parts[i].iter_mut().for_each(|v| *v = 0.0);
+            }
+        }
+    }
+    fits.iter()
+        .enumerate()
+        .map(|(i, fit)| {
+            let (structure, fit) = fit.as_ref()?;
+            let prob = Problem { u: input(i), y: &seen[i], structure: *structure, offset: true, seams: &seams };
+            test_poles(&prob, fit)
+        })
+        .collect()
+}
+
+/// The seams of a record's first `head` samples.
+fn head_seams(seams: &[usize], head: usize) -> Vec<usize> {
+    seams.iter().copied().filter(|&s| s < head).collect()
+}
+
+/// The test's model of one input's record (its head): the order (nA = nB = 1 or 2) whose IV
+/// fit has the smaller BIC, each order from the better of its two starts.
+fn fitted<'a>(u: &'a [f64], y: &'a [f64], seams: &'a [usize], delay: usize) -> Option<(Problem<'a>, IvFit)> {
     let fits: Vec<(Problem, IvFit)> = (1..=ORDER)
         .filter_map(|n| {
             let prob = Problem { u, y, structure: Structure::siso(n, n, delay), offset: true, seams };
@@ -136,16 +199,18 @@ pub fn pole_test(u: &[f64], y: &[f64], seams: &[usize], delay: usize) -> Option<
         .collect();
     let bic =
         |(p, f): &(Problem, IvFit)| f.rows as f64 * (f.scale * f.scale).ln() + p.dim() as f64 * (f.rows as f64).ln();
-    let (prob, fit) = fits.iter().min_by(|a, b| bic(a).total_cmp(&bic(b)))?;
-    test_poles(prob, fit)
+    let best = (0..fits.len()).min_by(|&a, &b| bic(&fits[a]).total_cmp(&bic(&fits[b])))?;
+    fits.into_iter().nth(best)
 }
 
 /// The IV estimate `[b, a, F(1) c, nuisance]` (the regression's own coefficients, A not
 /// stabilised), the model that simulated its instruments and the prefilter of its last pass,
-/// and the robust scale of its filtered equation errors over the rows used.
+/// and the robust scale of its filtered equation errors over the rows used; `model` is its
+/// `[b, a]` with A stabilised (the noise-free output of several inputs' backfitting).
 struct IvFit {
     theta: Vec<f64>,
     instruments: Vec<f64>,
+    model: Vec<f64>,
     filter: Vec<f64>,
     scale: f64,
     rows: usize,
@@ -206,7 +271,7 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
         filter.copy_from_slice(&model[prob.one().nb..]);
         capped(&mut filter);
     }
-    Some(IvFit { theta, instruments, filter: used, scale, rows })
+    Some(IvFit { theta, instruments, model, filter: used, scale, rows })
 }
 
 /// The sandwich variance of A(1) = `g^T theta` (g: ones at a): `g^T G^-1 S G^-T g = v^T S v`
@@ -399,126 +464,8 @@ fn test_poles(prob: &Problem, fit: &IvFit) -> Option<PoleTest> {
     Some(test)
 }
 
-/// A model fitted to the record, against which the test is judged: its name in the warning
-/// (e.g. "OE(2,2) delay 1 (picked by rbic)"), its largest pole radius, and its residuals'
-/// [`drift_statistic`] (None when the radius alone decides: a pole on the stability boundary).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Judged {
-    pub name: String,
-    pub radius: f64,
-    pub drift: Option<f64>,
-}
-
-/// The 5 % point of the KPSS level statistic (Kwiatkowski, Phillips, Schmidt and Shin 1992,
-/// table 1): above it the residuals drift.
-pub const DRIFT_LEVEL: f64 = 0.463;
-
-/// Whether a model with this pole radius is judged by its residuals (inside the stability
-/// boundary) or agrees with the test by its radius alone.
-pub fn judged_by_residuals(radius: f64) -> bool {
-    radius < BOUNDARY
-}
-
-/// The KPSS statistic of the model `theta`'s residuals on the record `prob` as tested (its
-/// head of [`MAX_ROWS`]), the initial state of each experiment fitted (the transient of a slow
-/// model started from rest is no drift): see [`drift_statistic`].
-pub fn residual_drift(prob: &Problem, theta: &[f64]) -> f64 {
-    let prob = prob.head(prob.n().min(MAX_ROWS));
-    let mut r = prob.simulate_vec(theta);
-    let (b, f, _) = prob.split(theta);
-    for x in prob.experiments() {
-        add_free_response(f, b.len(), prob.one().delay, &prob.y[x.clone()], &mut r[x]);
-    }
-    r.iter_mut().zip(prob.y).for_each(|(r, y)| *r = y - *r);
-    drift_statistic(&r, prob.seams)
-}
-
-/// The KPSS statistic of `r` about a level in each experiment (METHOD.md 7.3):
-/// `eta = sum_t S_t^2 / (sum_k N_k^2 s^2)`, `S_t` the partial sums of `psi(r)` less its mean
-/// within each experiment, `s^2` their Newey-West long-run variance with Bartlett weights up
-/// to lag `floor(12 (N/100)^(1/4))` (KPSS's own), `psi` Huber's at `k = 2` robust scales
-/// about the median (a spike moves S by at most that). About 1/6 for residuals that wander
-/// about a level, growing with N when they drift; 0 for constant residuals.
-pub fn drift_statistic(r: &[f64], seams: &[usize]) -> f64 {
-    let n = r.len();
-    if n < 2 {
-        return 0.0;
-    }
-    let mut sorted = r.to_vec();
-    let mid = n / 2;
-    let centre = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
-    let scale = robust_scale(&r.iter().map(|v| v - centre).collect::<Vec<_>>(), |_| true);
-    let cut = HUBER_K * scale;
-    let mut psi: Vec<f64> = r.iter().map(|v| (v - centre).clamp(-cut, cut)).collect();
-    let experiments = crate::data::experiment_ranges(n, seams);
-    let (mut sums, mut lengths) = (0.0, 0.0);
-    for x in &experiments {
-        let e = &mut psi[x.clone()];
-        let mean = e.iter().sum::<f64>() / e.len().max(1) as f64;
-        let mut s = 0.0;
-        for v in e.iter_mut() {
-            *v -= mean;
-            s += *v;
-            sums += s * s;
-        }
-        lengths += (e.len() as f64).powi(2);
-    }
-    let lag = (12.0 * (n as f64 / 100.0).powf(0.25)).floor() as usize;
-    let variance = long_run_sum(experiments.iter().map(|x| &psi[x.clone()]), lag) / n as f64;
-    if variance > 0.0 { sums / lengths / variance } else { 0.0 }
-}
-
-/// The warning of the test judged against the models fitted to the record (METHOD.md 7.3):
-/// none when the test does not fire; when it does, the integrating plant's when no model was
-/// fitted or one has a pole on the stability boundary (the fit agrees), otherwise the drift
-/// of the residuals of those stable models whose residuals drift, and none when no residuals
-/// drift (the stable models explain the record the test's pole came from). `record` names
-/// the record in the warning.
-pub fn doubt(test: &PoleTest, record: &str, judged: &[Judged]) -> Option<String> {
-    if !test.integrating {
-        return None;
-    }
-    let what = pole_words(test);
-    if judged.is_empty() || judged.iter().any(|j| !judged_by_residuals(j.radius)) {
-        return Some(format!(
-            "a low-order IV fit of {record} has {what}: the plant looks integrating (or unstable), and an \
-             output-error model forces a stable model onto it (identify from the differenced output, or in \
-             closed loop)"
-        ));
-    }
-    let drifting: Vec<(&Judged, f64)> =
-        judged.iter().filter_map(|j| j.drift.filter(|&d| d > DRIFT_LEVEL).map(|d| (j, d))).collect();
-    let ((first, stat), rest) = drifting.split_first()?;
-    let mut models = format!("{} (KPSS statistic {stat:.2}, slowest pole at radius {:.4})", first.name, first.radius);
-    for (j, stat) in rest {
-        models.push_str(&format!(" and of {} ({stat:.2}, {:.4})", j.name, j.radius));
-    }
-    let their = if rest.is_empty() { "its" } else { "their" };
-    Some(format!(
-        "the residuals of {models} drift (above {DRIFT_LEVEL}, the 5 % point for residuals about a level), \
-         though {their} poles are stable: a slow disturbance that the model does not explain, or an integrating \
-         plant (a low-order IV fit of {record} has {what}); take the drift out of the record (detrend it, or \
-         high-pass both signals), or identify from the differenced output if the plant integrates"
-    ))
-}
-
-/// The test's pole and its 95 % interval in words (enough decimals that the ends differ), or
-/// the slowest complex pair and A(1)'s interval.
-fn pole_words(test: &PoleTest) -> String {
-    let decimals = |w: f64| (-w.log10()).ceil().clamp(3.0, 8.0) as usize + 1;
-    let (p, a, sd) = (test.pole, test.a_at_1, test.a_at_1_std);
-    match test.interval {
-        Some((lo, hi)) => {
-            let dp = decimals(hi - lo);
-            let place = if lo > 1.0 { ", above 1" } else { " that may be 1" };
-            format!("a pole at {:.dp$} (95 % interval {lo:.dp$}..{hi:.dp$}){place}", p.0)
-        }
-        None => format!(
-            "its slowest poles at {:.4} +- {:.4}i and A(1) = {a:.3e} (95 % interval {:.3e}..{:.3e}), 0 for a pole at 1",
-            p.0,
-            p.1.abs(),
-            a - Z95 * sd,
-            a + Z95 * sd
-        ),
-    }
-}
+mod judged;
+pub use judged::{
+    DRIFT_LEVEL, Judged, doubt, doubts, drift_statistic, input_doubt, input_name, input_radius, judged_by_residuals,
+    residual_drift,
+};
