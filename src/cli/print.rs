@@ -275,7 +275,11 @@ pub(super) fn print_rules(selection: &reduce::Selection) {
         outln!(
             "{lead}{:<11}{:<22}{:>8}{:>24}{:>12}{:>10}{:>8}",
             rule.as_str(),
-            format!("OE({},{}) delay {}", m.key.nb, m.key.nf, m.key.delay),
+            if m.key.m() == 1 {
+                format!("OE({},{}) delay {}", m.key.nb, m.key.nf, m.key.delay)
+            } else {
+                m.key.structure().label()
+            },
             k,
             value,
             opt_pct(score),
