@@ -67,7 +67,8 @@ fn l2_phase(c: &mut Criterion) {
     let mut group = c.benchmark_group("l2_phase");
     group.sampling_mode(SamplingMode::Flat);
     for (nb, nf) in ORDERS {
-        let prob = Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
+        let prob =
+            Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[], missing: &[] };
         // One workspace per bench, reused across calls, as a sweep worker reuses its own.
         let mut ws = Workspace::new();
         let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
@@ -90,7 +91,8 @@ fn huber_phase(c: &mut Criterion) {
     let mut group = c.benchmark_group("huber_phase");
     group.sampling_mode(SamplingMode::Flat);
     for (nb, nf) in ORDERS {
-        let prob = Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
+        let prob =
+            Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[], missing: &[] };
         let mut ws = Workspace::new();
         let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
         let loss = Loss::Huber { gamma: K * ls.sigma };
@@ -113,7 +115,8 @@ fn huber_multi(c: &mut Criterion) {
     let mut group = c.benchmark_group("huber_multi");
     group.sampling_mode(SamplingMode::Flat);
     for (nb, nf) in ORDERS {
-        let prob = Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
+        let prob =
+            Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[], missing: &[] };
         let mut ws = Workspace::new();
         let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
         let (h, which) = estimate::fit_huber_multi(&prob, &ls, K, &Judge::default(), &opts, &mut ws);
@@ -139,7 +142,8 @@ fn huber_phase_n(c: &mut Criterion) {
     group.sampling_mode(SamplingMode::Flat);
     for (i, n) in LENGTHS.into_iter().enumerate() {
         let (u, y) = simulated_record(n, 101 + i as u64);
-        let prob = Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
+        let prob =
+            Problem { u: &u, y: &y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[], missing: &[] };
         let mut ws = Workspace::new();
         let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
         let loss = Loss::Huber { gamma: K * ls.sigma };

@@ -39,7 +39,8 @@ fn setup() -> Setup {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_est.csv");
     let rec = oesweep::data::read_record(&path, "u", "y").expect("bundled estimation data");
     let (u, y) = (rec.u, rec.y);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(NB, NF, DELAY), offset: false, seams: &[] };
+    let prob =
+        Problem { u: &u, y: &y, structure: Structure::siso(NB, NF, DELAY), offset: false, seams: &[], missing: &[] };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
@@ -118,7 +119,14 @@ fn normal_equations(c: &mut Criterion, s: &Setup) {
 }
 
 fn one_iteration(c: &mut Criterion, s: &Setup) {
-    let prob = Problem { u: &s.u, y: &s.y, structure: Structure::siso(NB, NF, DELAY), offset: false, seams: &[] };
+    let prob = Problem {
+        u: &s.u,
+        y: &s.y,
+        structure: Structure::siso(NB, NF, DELAY),
+        offset: false,
+        seams: &[],
+        missing: &[],
+    };
     let opts = SolverOptions { max_iterations: 1, ..Default::default() };
     let loss = Loss::Huber { gamma: s.gamma };
     let mut ws = Workspace::new();

@@ -109,8 +109,14 @@ fn main() {
             .par_iter()
             .map_init(Workspace::new, |ws, &p| {
                 let (nb, nf) = (plan.pairs[p].one().nb, plan.pairs[p].one().nf);
-                let prob =
-                    Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
+                let prob = Problem {
+                    u: &rec.u,
+                    y: &rec.y,
+                    structure: Structure::siso(nb, nf, 1),
+                    offset: false,
+                    seams: &[],
+                    missing: &[],
+                };
                 let subs: &[usize] = if opts.nested_starts { &subs[p] } else { &[] };
                 let nested: Vec<Vec<f64>> = subs
                     .iter()
@@ -131,8 +137,14 @@ fn main() {
         .zip(&ls_fits)
         .map_init(Workspace::new, |ws, (((nb, nf), lines), fit)| {
             let (nb, nf) = (*nb, *nf);
-            let prob =
-                Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
+            let prob = Problem {
+                u: &rec.u,
+                y: &rec.y,
+                structure: Structure::siso(nb, nf, 1),
+                offset: false,
+                seams: &[],
+                missing: &[],
+            };
             let t = Instant::now();
             let (ls, ls_seconds) = fit.as_ref().expect("every pair fitted");
             let mut ls_cmp = (f64::NAN, String::new(), false);

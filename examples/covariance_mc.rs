@@ -241,8 +241,14 @@ fn main() {
         let (uo, y0o) = if per_input { make(5000 + seed) } else { (u0.clone(), y00.clone()) };
         let (u, y0) = (&uo[..], &y0o[..]);
         let y: Vec<f64> = y0.iter().map(|v| v + sigma * rng.normal()).collect();
-        let prob =
-            Problem { u, y: &y, structure: oesweep::oe::Structure::siso(nb, nf, delay), offset: false, seams: &[] };
+        let prob = Problem {
+            u,
+            y: &y,
+            structure: oesweep::oe::Structure::siso(nb, nf, delay),
+            offset: false,
+            seams: &[],
+            missing: &[],
+        };
         let ls = estimate::fit_ls_from(&prob, &truth, &judge, &opts, &mut ws);
         let th = ls.theta();
         if seed < 5 {

@@ -35,7 +35,8 @@ fn main() {
         }
     }
     let o = Orders { nb: 2, nf: 2, delay: 1 };
-    let prob = Problem { u: &u, y: &y, structure: Structure::new(&[o, o, o]).unwrap(), offset, seams: &[] };
+    let prob =
+        Problem { u: &u, y: &y, structure: Structure::new(&[o, o, o]).unwrap(), offset, seams: &[], missing: &[] };
     let mut ws = Workspace::new();
     ws.record_trace = true;
     for (g, guess) in initial_guess::initial_guesses(&prob).iter().enumerate() {

@@ -86,8 +86,14 @@ fn main() {
     // Per listed order pair: (ours, peer) seconds summed over its k values, and their count.
     let mut pair_totals: Vec<((usize, usize), f64, f64, usize)> = Vec::new();
     for c in &cells {
-        let prob =
-            Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(c.nb, c.nf, 1), offset: false, seams: &[] };
+        let prob = Problem {
+            u: &rec.u,
+            y: &rec.y,
+            structure: Structure::siso(c.nb, c.nf, 1),
+            offset: false,
+            seams: &[],
+            missing: &[],
+        };
         if ls.as_ref().is_none_or(|(key, _)| *key != (c.nb, c.nf)) {
             ls = Some(((c.nb, c.nf), estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws)));
         }

@@ -83,7 +83,14 @@ fn main() {
             outliers: (spikes > 0.0).then_some(Outliers { probability: spikes, min: 5.0 * noise, max: 15.0 * noise }),
         };
         let rec = simulate::generate(&sys, &opts_sim).expect("the system");
-        let prob = Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
+        let prob = Problem {
+            u: &rec.u,
+            y: &rec.y,
+            structure: Structure::siso(nb, nf, 1),
+            offset: false,
+            seams: &[],
+            missing: &[],
+        };
         // The fit as `oesweep fit` made it before the boundary's further starts, then with them.
         let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
         let (plain, start) = estimate::fit_huber_multi(&prob, &ls, k, &judge, &opts, &mut ws);

@@ -88,7 +88,8 @@ fn std_matches_the_spread_on_an_ill_conditioned_lightly_damped_oe_12_12() {
     for seed in 0..REALISATIONS {
         let mut rng = Lcg(1000 + seed);
         let y: Vec<f64> = y0.iter().map(|v| v + SIGMA * rng.normal()).collect();
-        let prob = Problem { u: &u, y: &y, structure: Structure::siso(12, 12, 1), offset: false, seams: &[] };
+        let prob =
+            Problem { u: &u, y: &y, structure: Structure::siso(12, 12, 1), offset: false, seams: &[], missing: &[] };
         let ls = estimate::fit_ls_from(&prob, &truth, &judge, &opts, &mut ws);
         let e = &ls.assessment.evidence;
         l_est.push(ls.theta());

@@ -239,7 +239,15 @@ fn parquet_page_header_with_a_negative_count() {
 }
 
 fn record(name: &str, u: Vec<f64>, y: Vec<f64>) -> Record {
-    Record { path: PathBuf::from(name), u, y, u_names: vec!["u".into()], y_name: "y".into(), seams: Vec::new() }
+    Record {
+        path: PathBuf::from(name),
+        u,
+        y,
+        u_names: vec!["u".into()],
+        y_name: "y".into(),
+        seams: Vec::new(),
+        missing: Vec::new(),
+    }
 }
 
 fn model_err(rec: &Record, nb: usize, nf: usize, delay: usize, want: &str) {

@@ -19,7 +19,14 @@ fn recover(b: &[f64], f: &[f64], n: usize) {
     let u = binary_input(n, 3, 10.0, 7);
     let y = oe::simulate_vec(b, f, 1, &u);
     let truth = [b, f].concat();
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(b.len(), f.len(), 1), offset: false, seams: &[] };
+    let prob = Problem {
+        u: &u,
+        y: &y,
+        structure: Structure::siso(b.len(), f.len(), 1),
+        offset: false,
+        seams: &[],
+        missing: &[],
+    };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let judge = Judge::default();
@@ -64,7 +71,7 @@ fn an_over_parameterised_fit_of_noise_free_data_is_exact() {
     let (b, f) = oe22();
     let u = binary_input(2000, 3, 1.0, 11);
     let y = oe::simulate_vec(&b, &f, 1, &u);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(6, 6, 1), offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(6, 6, 1), offset: false, seams: &[], missing: &[] };
     let ls = estimate::fit_ls(&prob, &Judge::default(), &SolverOptions::default(), &mut Workspace::new());
     let scale = y.iter().map(|v| v * v).sum::<f64>() / y.len() as f64;
     assert!(ls.criterion < 1e-12 * scale, "criterion {} against a mean square of {scale}", ls.criterion);
@@ -172,7 +179,8 @@ fn outlier_data(frac: f64) -> Outlier {
 #[test]
 fn huber_beats_least_squares_with_outliers_and_invariants_hold() {
     let d = outlier_data(0.10);
-    let prob = Problem { u: &d.u, y: &d.y, structure: Structure::siso(10, 10, 1), offset: false, seams: &[] };
+    let prob =
+        Problem { u: &d.u, y: &d.y, structure: Structure::siso(10, 10, 1), offset: false, seams: &[], missing: &[] };
     let judge = Judge {
         validation: Some((&d.uv, &d.yv0)),
         initial_state: oesweep::estimate::InitialState::Zero,
@@ -208,7 +216,7 @@ fn chains_recover_the_truth_merge_duplicates_and_keep_the_best() {
     let u = binary_input(2000, 3, 10.0, 7);
     let y = oe::simulate_vec(&b, &f, 1, &u);
     let truth = [&b[..], &f[..]].concat();
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[], missing: &[] };
     let (opts, judge, mut ws) = (SolverOptions::default(), Judge::default(), Workspace::new());
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
     // The same start twice plus a poor one: all three reach the single (true) minimum.
@@ -260,7 +268,14 @@ fn warm_damping_converges_to_a_minimum_in_fewer_iterations() {
         .iter()
         .map(|v| v + rng.normal() + if rng.next() < 0.05 { 6.0 } else { 0.0 })
         .collect();
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(b.len(), f.len(), 1), offset: false, seams: &[] };
+    let prob = Problem {
+        u: &u,
+        y: &y,
+        structure: Structure::siso(b.len(), f.len(), 1),
+        offset: false,
+        seams: &[],
+        missing: &[],
+    };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let cold = SolverOptions { warm_lambda0: opts.lambda0, ..opts.clone() };
@@ -322,7 +337,14 @@ impl Oe1010 {
     }
 
     fn prob(&self) -> Problem<'_> {
-        Problem { u: &self.u, y: &self.y, structure: Structure::siso(self.nb, self.nf, 1), offset: false, seams: &[] }
+        Problem {
+            u: &self.u,
+            y: &self.y,
+            structure: Structure::siso(self.nb, self.nf, 1),
+            offset: false,
+            seams: &[],
+            missing: &[],
+        }
     }
 
     /// The least-squares fit (default settings) and a start far from it (see [`shrunk`]).
@@ -452,7 +474,8 @@ fn a_creeping_chain_keeps_its_budget_while_it_loses() {
 #[test]
 fn the_backward_walk_finds_the_branch_below_a_fold_and_is_never_worse() {
     let rec = piezo_estimation_record();
-    let prob = Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(8, 4, 1), offset: false, seams: &[] };
+    let prob =
+        Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(8, 4, 1), offset: false, seams: &[], missing: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let opts = SolverOptions::default();
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
@@ -492,7 +515,14 @@ fn the_backward_walk_finds_the_branch_below_a_fold_and_is_never_worse() {
 fn the_top_cell_is_no_worse_than_its_fits_from_theta_ls() {
     let rec = piezo_estimation_record();
     for (nb, nf, cold_lower) in [(14, 11, false), (12, 8, true)] {
-        let prob = Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(nb, nf, 1), offset: false, seams: &[] };
+        let prob = Problem {
+            u: &rec.u,
+            y: &rec.y,
+            structure: Structure::siso(nb, nf, 1),
+            offset: false,
+            seams: &[],
+            missing: &[],
+        };
         let (judge, mut ws) = (Judge::default(), Workspace::new());
         let opts = SolverOptions::default();
         let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);

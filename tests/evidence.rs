@@ -64,7 +64,8 @@ fn huber_std_matches_the_spread_with_spikes_and_least_squares_std_without() {
     let (mut h_est, mut h_std, mut l_est, mut l_std) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for seed in 0..REALISATIONS {
         let (u, y) = realisation(seed, 0.05);
-        let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[] };
+        let prob =
+            Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[], missing: &[] };
         let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
         let h = estimate::fit_huber(&prob, ls.sigma, 0.3, &ls.theta(), &judge, &opts, &mut ws);
         assert!(h.termination.converged(), "{:?}", h.termination);
@@ -73,7 +74,8 @@ fn huber_std_matches_the_spread_with_spikes_and_least_squares_std_without() {
         h_std.push([&e.b_std[..], &e.f_std[..]].concat());
 
         let (u, y) = realisation(seed + 500, 0.0);
-        let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &[] };
+        let prob =
+            Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &[], missing: &[] };
         let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
         l_est.push(ls.theta());
         let e = &ls.assessment.evidence;
@@ -90,7 +92,8 @@ fn residual_tests_pass_the_true_orders_and_reject_too_few() {
     let (mut white, mut indep, mut small_indep) = (0, 0, 0);
     for seed in 0..20 {
         let (u, y) = realisation(seed + 100, 0.05);
-        let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[] };
+        let prob =
+            Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[], missing: &[] };
         let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
         let h = estimate::fit_huber(&prob, ls.sigma, 0.3, &ls.theta(), &judge, &opts, &mut ws);
         let e = &h.assessment.evidence;
@@ -111,7 +114,7 @@ fn residual_tests_pass_the_true_orders_and_reject_too_few() {
 #[test]
 fn an_over_parameterised_model_has_a_large_relative_std() {
     let (u, y) = realisation(7, 0.0);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(6, 6, 1), offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(6, 6, 1), offset: false, seams: &[], missing: &[] };
     let (opts, judge) = (SolverOptions::default(), Judge::default());
     let ls = estimate::fit_ls(&prob, &judge, &opts, &mut Workspace::new());
     assert!(ls.assessment.evidence.max_rel_std.is_some_and(|v| v > 1.0), "{:?}", ls.assessment.evidence);

@@ -372,7 +372,8 @@ fn noise_free_experiments_give_the_true_model_with_either_method() {
     for method in [SolverMethod::Lm, SolverMethod::Separable] {
         let opts = SolverOptions { method, ..SolverOptions::default() };
         let mut ws = Workspace::new();
-        let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &seams };
+        let prob =
+            Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &seams, missing: &[] };
         let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
         let theta: Vec<f64> = ls.b.iter().chain(&ls.f).copied().chain(ls.offset).collect();
         for (x, t) in theta.iter().zip(&truth) {

@@ -97,7 +97,15 @@ fn no_lag_reaches_across_a_seam() {
 }
 
 fn rec(u: Vec<f64>, y: Vec<f64>) -> Record {
-    Record { path: "plant.csv".into(), u, y, u_names: vec!["u".into()], y_name: "y".into(), seams: Vec::new() }
+    Record {
+        path: "plant.csv".into(),
+        u,
+        y,
+        u_names: vec!["u".into()],
+        y_name: "y".into(),
+        seams: Vec::new(),
+        missing: Vec::new(),
+    }
 }
 
 /// The test as the records are read, and its warning unjudged: it names the pole and its 95 %

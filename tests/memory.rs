@@ -58,7 +58,7 @@ fn peak_vectors(n: usize, method: SolverMethod) -> f64 {
     let y: Vec<f64> =
         y0.iter().map(|v| v + 3.0 + 0.02 * rng.normal() + if rng.next() < 0.05 { 2.0 } else { 0.0 }).collect();
     let (ue, ye, uv, yv) = (&u[..n], &y[..n], &u[n..], &y[n..]);
-    let prob = Problem { u: ue, y: ye, structure: Structure::siso(4, 4, 1), offset: true, seams: &[] };
+    let prob = Problem { u: ue, y: ye, structure: Structure::siso(4, 4, 1), offset: true, seams: &[], missing: &[] };
     let judge = Judge { validation: Some((uv, yv)), initial_state: InitialState::Estimate, ..Judge::default() };
     let opts = SolverOptions { method, ..SolverOptions::default() };
     let ks: Vec<(usize, f64)> = (0..6).map(|i| (i, 0.05 * 40f64.powf(i as f64 / 5.0))).collect();

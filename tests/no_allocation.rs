@@ -48,7 +48,14 @@ fn a_minimisation_with_pole_reflections_allocates_only_its_result() {
     let rec = oesweep::data::read_record(path.as_ref(), "u", "y").unwrap();
     // OE(12,12) from the ARX guess: the least-squares fit reflects unstable trial steps (the
     // piezo's lightly damped modes), and the Huber fit from there runs the weighted paths.
-    let prob = Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(12, 12, 1), offset: false, seams: &[] };
+    let prob = Problem {
+        u: &rec.u,
+        y: &rec.y,
+        structure: Structure::siso(12, 12, 1),
+        offset: false,
+        seams: &[],
+        missing: &[],
+    };
     let start = initial_guess::initial_guesses(&prob).remove(0);
     for method in [SolverMethod::Lm, SolverMethod::Separable] {
         let opts = SolverOptions { method, ..SolverOptions::default() };
@@ -87,10 +94,10 @@ fn a_minimisation_of_several_inputs_allocates_only_its_result() {
     let u: Vec<f64> = (0..2 * n).map(|_| if next() > 0.0 { 1.0 } else { -1.0 }).collect();
     let zeros = vec![0.0; n];
     let truth = [0.5, 0.3, -1.5, 0.7, 0.8, -0.9, 0.2];
-    let clean = Problem { u: &u, y: &zeros, structure, offset: true, seams: &[] }.simulate_vec(&truth);
+    let clean = Problem { u: &u, y: &zeros, structure, offset: true, seams: &[], missing: &[] }.simulate_vec(&truth);
     let y: Vec<f64> =
         clean.iter().enumerate().map(|(t, v)| v + 0.1 * next() + if t % 20 == 7 { 3.0 } else { 0.0 }).collect();
-    let prob = Problem { u: &u, y: &y, structure, offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure, offset: true, seams: &[], missing: &[] };
     let start = initial_guess::initial_guesses(&prob).remove(0);
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();

@@ -72,7 +72,7 @@ fn gradient_with_an_offset_matches_finite_differences() {
     let u = binary_input(n, 2, 1.0, 9);
     let mut rng = Lcg(2);
     let y: Vec<f64> = oe::simulate_vec(&b, &f, 1, &u).iter().map(|v| v - 2.0 + 0.2 * rng.normal()).collect();
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &[], missing: &[] };
     let theta = vec![0.45, 0.33, f[0] * 0.98, f[1] * 1.01, -1.9];
     for loss in [Loss::LeastSquares, Loss::Huber { gamma: 0.15 }] {
         let crit = |th: &[f64]| loss.criterion(&y, &prob.simulate_vec(th));
@@ -116,14 +116,21 @@ fn offset_is_recovered_and_the_fit_does_not_depend_on_it() {
             u_names: vec!["u".into()],
             y_name: "y".into(),
             seams: Vec::new(),
+            missing: Vec::new(),
         };
         let levels = Levels::of(Offset::Estimate, &est);
         let mut rec = est.clone();
         levels.apply(&mut rec);
         assert_eq!(levels.u0, vec![u0]);
         let truth: Vec<f64> = b.iter().chain(&f).copied().chain([c]).collect();
-        let prob =
-            Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(b.len(), f.len(), 1), offset: true, seams: &[] };
+        let prob = Problem {
+            u: &rec.u,
+            y: &rec.y,
+            structure: Structure::siso(b.len(), f.len(), 1),
+            offset: true,
+            seams: &[],
+            missing: &[],
+        };
         let (opts, judge, mut ws) = (SolverOptions::default(), Judge::default(), Workspace::new());
         let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
         assert!(ls.termination.converged(), "{:?}", ls.termination);
@@ -149,7 +156,7 @@ fn initial_state_makes_a_short_tail_judge_the_model() {
     let y = oe::simulate_vec(&b, &f, 1, &u);
     let (ue, ye) = (&u[..1000], &y[..1000]);
     let (uv, yv) = (&u[1000..], &y[1000..]);
-    let prob = Problem { u: ue, y: ye, structure: Structure::siso(3, 4, 1), offset: false, seams: &[] };
+    let prob = Problem { u: ue, y: ye, structure: Structure::siso(3, 4, 1), offset: false, seams: &[], missing: &[] };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let judged = |initial_state| {

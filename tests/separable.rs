@@ -45,6 +45,7 @@ fn noise_free_data_recovers_the_true_parameters_from_a_poor_start() {
                 structure: Structure::siso(b.len(), f.len(), 1),
                 offset: offset.is_some(),
                 seams: &[],
+                missing: &[],
             };
             let truth = estimate::theta_of(&b, &f, offset);
             // F's poles pulled towards the origin, B halved, no offset: the inner problem
@@ -82,7 +83,7 @@ fn noise_free_data_recovers_the_true_parameters_from_a_poor_start() {
 #[test]
 fn the_linear_parameters_are_at_their_inner_optimum() {
     let (u, y) = spiky(3000, 5.0);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 2, 1), offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 2, 1), offset: true, seams: &[], missing: &[] };
     let mut ws = Workspace::new();
     let start = vec![0.1, 0.0, 0.0, -1.0, 0.5, 0.0];
     for loss in [Loss::LeastSquares, Loss::Huber { gamma: 0.1 }] {
@@ -110,7 +111,7 @@ fn the_linear_parameters_are_at_their_inner_optimum() {
 #[test]
 fn the_criterion_falls_on_every_accepted_step_and_f_stays_stable() {
     let (u, y) = spiky(4000, 0.0);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(4, 4, 1), offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(4, 4, 1), offset: false, seams: &[], missing: &[] };
     let mut ws = Workspace::new();
     ws.record_trace = true;
     let judge = Judge::default();
@@ -130,7 +131,7 @@ fn the_criterion_falls_on_every_accepted_step_and_f_stays_stable() {
 #[test]
 fn separable_and_full_levenberg_marquardt_agree() {
     let (u, y) = spiky(5000, 2.0);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &[], missing: &[] };
     let judge = Judge::default();
     let mut ws = Workspace::new();
     let lm = SolverOptions::default();
@@ -203,7 +204,7 @@ fn whole_and_head() -> [SolverOptions; 2] {
 #[test]
 fn exploring_the_starts_on_the_head_reaches_the_whole_record_minima() {
     let (u, y) = spiky(40_000, 1.0);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 3, 1), offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 3, 1), offset: true, seams: &[], missing: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let [whole, head] = whole_and_head();
     let a = estimate::fit_ls(&prob, &judge, &whole, &mut ws);
@@ -246,7 +247,7 @@ fn walked_cells(
 #[test]
 fn walking_the_chains_on_the_head_reaches_the_whole_record_cells() {
     let (u, y) = spiky(40_000, 1.0);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 3, 1), offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 3, 1), offset: true, seams: &[], missing: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let [whole, head] = whole_and_head();
     let ls = estimate::fit_ls(&prob, &judge, &whole, &mut ws);
@@ -278,7 +279,7 @@ fn walking_the_chains_on_the_head_reaches_the_whole_record_cells() {
 #[test]
 fn a_resumed_head_walk_gives_the_same_cells() {
     let (u, y) = spiky(30_000, 1.0);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 3, 1), offset: true, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 3, 1), offset: true, seams: &[], missing: &[] };
     let (judge, mut ws) = (Judge::default(), Workspace::new());
     let [_, head] = whole_and_head();
     let ls = estimate::fit_ls(&prob, &judge, &head, &mut ws);

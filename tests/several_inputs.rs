@@ -48,7 +48,7 @@ fn normal_equations_of_several_inputs_are_the_jacobians() {
     let n = 400;
     for (seams, offset) in [(vec![], false), (vec![150, 290], true)] {
         let (u, y) = record(&sys, n, &seams, 0.0);
-        let prob = Problem { u: &u, y: &y, structure: structure_of(&sys), offset, seams: &seams };
+        let prob = Problem { u: &u, y: &y, structure: structure_of(&sys), offset, seams: &seams, missing: &[] };
         let d = prob.dim();
         let mut theta = truth(&sys, offset.then_some(0.4));
         for (i, v) in theta.iter_mut().enumerate() {
@@ -104,7 +104,14 @@ fn noise_free_records_of_several_inputs_recover_the_true_parameters() {
         let sys = &system()[..m];
         for (seams, c) in [(vec![], None), (vec![1700], Some(2.5))] {
             let (u, y) = record(sys, 3000, &seams, c.unwrap_or(0.0));
-            let prob = Problem { u: &u, y: &y, structure: structure_of(sys), offset: c.is_some(), seams: &seams };
+            let prob = Problem {
+                u: &u,
+                y: &y,
+                structure: structure_of(sys),
+                offset: c.is_some(),
+                seams: &seams,
+                missing: &[],
+            };
             let mut ws = Workspace::new();
             ws.record_trace = true;
             let ls = estimate::fit_ls(&prob, &Judge::default(), &SolverOptions::default(), &mut ws);
@@ -124,7 +131,7 @@ fn the_criterion_never_rises_on_an_accepted_step_with_several_inputs() {
     let (u, y0) = record(&sys, 2000, &[], 0.0);
     let mut rng = Lcg(9);
     let y: Vec<f64> = y0.iter().map(|v| v + 0.1 * rng.normal() + if rng.next() < 0.05 { 3.0 } else { 0.0 }).collect();
-    let prob = Problem { u: &u, y: &y, structure: structure_of(&sys), offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: structure_of(&sys), offset: false, seams: &[], missing: &[] };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
@@ -164,7 +171,14 @@ fn criteria_are_no_higher_than_the_miso_peers() {
             };
             let (nb, nf, delay) = (list("nb"), list("nf"), list("delay"));
             let orders: Vec<Orders> = (0..m).map(|i| Orders { nb: nb[i], nf: nf[i], delay: delay[i] }).collect();
-            let prob = Problem { u: &u, y: &y, structure: Structure::new(&orders).unwrap(), offset: false, seams: &[] };
+            let prob = Problem {
+                u: &u,
+                y: &y,
+                structure: Structure::new(&orders).unwrap(),
+                offset: false,
+                seams: &[],
+                missing: &[],
+            };
             let mut ws = Workspace::new();
             let ls = estimate::fit_ls(&prob, &Judge::default(), &opts, &mut ws);
             let peer_ls = cell["ls_mse"].as_f64().unwrap() / 2.0;
@@ -198,7 +212,7 @@ fn the_initial_state_of_several_inputs_is_fitted_when_judging() {
     let (u_all, y_all) = record(&sys, 1300, &[], 0.0);
     let u: Vec<f64> = (0..3).flat_map(|i| u_all[i * 1300 + 300..(i + 1) * 1300].to_vec()).collect();
     let y = y_all[300..].to_vec();
-    let prob = Problem { u: &u, y: &y, structure: structure_of(&sys), offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: structure_of(&sys), offset: false, seams: &[], missing: &[] };
     let theta = truth(&sys, None);
     let zero = estimate::fit_percent(&y, &prob.simulate_vec(&theta));
     let mut judged = prob.simulate_vec(&theta);
@@ -231,7 +245,7 @@ fn reported_std_of_several_inputs_matches_the_spread_over_realisations() {
                 v + e
             })
             .collect();
-        let prob = Problem { u: &u, y: &y, structure: structure_of(sys), offset: false, seams: &[] };
+        let prob = Problem { u: &u, y: &y, structure: structure_of(sys), offset: false, seams: &[], missing: &[] };
         let ls = estimate::fit_ls(&prob, &judge, &opts, &mut ws);
         let h = estimate::fit_huber(&prob, ls.sigma, 0.3, &ls.theta(), &judge, &opts, &mut ws);
         assert!(h.termination.converged(), "{:?}", h.termination);

@@ -57,7 +57,7 @@ fn each_inputs_response_intervals_cover_its_truth_at_the_nominal_rate() {
     let mut square_errors = vec![vec![0.0; freqs.len()]; 2];
     for seed in 0..records {
         let (u, y) = record(800, 0.3, 40 + seed);
-        let prob = Problem { u: &u, y: &y, structure: s, offset: false, seams: &[] };
+        let prob = Problem { u: &u, y: &y, structure: s, offset: false, seams: &[], missing: &[] };
         let one = estimate::fit_one(&prob, 1.5, &Judge::default(), &opts, &mut ws);
         let theta = one.huber.theta();
         let settings = bootstrap::Settings { replicates, seed, ..Default::default() };

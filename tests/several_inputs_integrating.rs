@@ -90,6 +90,7 @@ fn fit_warnings(paths: [(&[f64], &[f64]); 2], seed: u64) -> Vec<String> {
         u_names: vec!["fuel".into(), "fan".into()],
         y_name: "y".into(),
         seams: Vec::new(),
+        missing: Vec::new(),
     };
     fit_arrays(&req, rec, None).unwrap().warnings
 }

@@ -44,6 +44,7 @@ fn record(n: usize, seed: u64) -> Record {
         u_names: vec!["u1".into(), "u2".into()],
         y_name: "y".into(),
         seams: Vec::new(),
+        missing: Vec::new(),
     }
 }
 

@@ -26,7 +26,7 @@ fn check_of(prob: &Problem, theta: &[f64], loss: Loss) -> quadratic::QuadraticCh
 fn a_well_identified_fit_is_quadratic_over_its_confidence_region() {
     let (b, f) = oe22();
     let (u, y) = record(&b, &f, 5000, 0.1, 3);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[], missing: &[] };
     let mut ws = Workspace::new();
     for k in [0.5, 1.5] {
         let one = estimate::fit_one(&prob, k, &Judge::default(), &SolverOptions::default(), &mut ws);
@@ -43,7 +43,7 @@ fn a_well_identified_fit_is_quadratic_over_its_confidence_region() {
 fn a_fit_with_a_lower_point_in_its_region_or_on_the_boundary_is_doubtful() {
     let (b, f) = oe22();
     let (u, y) = record(&b, &f, 5000, 0.1, 4);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[], missing: &[] };
     let mut ws = Workspace::new();
     let one = estimate::fit_one(&prob, 1.5, &Judge::default(), &SolverOptions::default(), &mut ws);
     let loss = Loss::Huber { gamma: one.huber.gamma };
@@ -67,7 +67,7 @@ fn an_over_parameterised_fit_is_far_from_quadratic() {
     // along a direction the data barely determine; the criterion is not quadratic there.
     let (b, f) = oe22();
     let (u, y) = record(&b, &f, 2000, 0.1, 5);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 3, 1), offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 3, 1), offset: false, seams: &[], missing: &[] };
     let mut ws = Workspace::new();
     let ls = estimate::fit_ls(&prob, &Judge::default(), &SolverOptions::default(), &mut ws);
     let c = check_of(&prob, &ls.theta(), Loss::LeastSquares);
@@ -81,7 +81,7 @@ fn an_over_parameterised_fit_is_far_from_quadratic() {
 fn the_bootstrap_of_a_linear_model_finds_its_known_covariance() {
     let b = [0.8, -0.4, 0.2];
     let (u, y) = record(&b, &[], 1000, 0.2, 6);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 0, 1), offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(3, 0, 1), offset: false, seams: &[], missing: &[] };
     let opts = SolverOptions::default();
     let mut ws = Workspace::new();
     let one = estimate::fit_one(&prob, 20.0, &Judge::default(), &opts, &mut ws);
@@ -153,7 +153,8 @@ fn the_bootstrap_covers_the_truth_at_the_nominal_rate() {
     let (mut covered, mut widths, mut square_errors) = (0, [0.0; 4], [0.0; 4]);
     for seed in 0..records {
         let (u, y) = record(&b, &f, 600, 0.3, 100 + seed);
-        let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[] };
+        let prob =
+            Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[], missing: &[] };
         let one = estimate::fit_one(&prob, 1.5, &Judge::default(), &opts, &mut ws);
         let theta = one.huber.theta();
         let settings = bootstrap::Settings { replicates: 100, seed, ..Default::default() };
@@ -175,7 +176,7 @@ fn the_bootstrap_covers_the_truth_at_the_nominal_rate() {
 fn the_bootstrap_does_not_depend_on_the_thread_count() {
     let (b, f) = oe22();
     let (u, y) = record(&b, &f, 800, 0.2, 8);
-    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[] };
+    let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: false, seams: &[], missing: &[] };
     let opts = SolverOptions::default();
     let one = estimate::fit_one(&prob, 1.0, &Judge::default(), &opts, &mut Workspace::new());
     let settings = bootstrap::Settings { replicates: 40, ..Default::default() };
@@ -220,7 +221,14 @@ fn realisation_14() -> oesweep::simulate::SimRecord {
 #[test]
 fn a_boundary_fit_is_not_returned_when_a_lower_interior_fit_is_within_reach() {
     let rec = realisation_14();
-    let prob = Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(12, 12, 1), offset: false, seams: &[] };
+    let prob = Problem {
+        u: &rec.u,
+        y: &rec.y,
+        structure: Structure::siso(12, 12, 1),
+        offset: false,
+        seams: &[],
+        missing: &[],
+    };
     let (judge, solver, k) = (Judge::default(), SolverOptions::default(), 0.0875);
     let mut ws = Workspace::new();
     let ls = estimate::fit_ls(&prob, &judge, &solver, &mut ws);
@@ -241,7 +249,14 @@ fn a_boundary_fit_is_not_returned_when_a_lower_interior_fit_is_within_reach() {
 fn the_sweeps_walk_leaves_no_boundary_cell_above_an_interior_fit_within_reach() {
     use oesweep::estimate::chains::{CellOutcome, walk_pair};
     let rec = realisation_14();
-    let prob = Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(12, 12, 1), offset: false, seams: &[] };
+    let prob = Problem {
+        u: &rec.u,
+        y: &rec.y,
+        structure: Structure::siso(12, 12, 1),
+        offset: false,
+        seams: &[],
+        missing: &[],
+    };
     let (judge, solver) = (Judge::default(), SolverOptions::default());
     let mut ws = Workspace::new();
     let ls = estimate::fit_ls(&prob, &judge, &solver, &mut ws);

@@ -176,6 +176,7 @@ mod tests {
             u_names: (0..inputs.len()).map(|i| format!("u{}", i + 1)).collect(),
             y_name: "y".into(),
             seams: Vec::new(),
+            missing: Vec::new(),
         }
     }
 

@@ -146,7 +146,15 @@ mod tests {
     use super::*;
 
     fn rec(u: Vec<f64>, y: Vec<f64>) -> Record {
-        Record { path: "r".into(), u, y, u_names: vec!["u".into()], y_name: "y".into(), seams: Vec::new() }
+        Record {
+            path: "r".into(),
+            u,
+            y,
+            u_names: vec!["u".into()],
+            y_name: "y".into(),
+            seams: Vec::new(),
+            missing: Vec::new(),
+        }
     }
 
     #[test]

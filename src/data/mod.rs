@@ -57,6 +57,10 @@ pub struct Record {
     /// concatenated ([`Record::concat`]; METHOD.md 16): empty for one experiment. Simulations
     /// restart from zero there and no lag reaches across.
     pub seams: Vec<usize>,
+    /// The samples whose output is missing (sorted; `y` holds NaN there): the model is
+    /// simulated through them and their residuals are left out of every criterion, fit and
+    /// test (METHOD.md 21). Empty for a complete record.
+    pub missing: Vec<usize>,
 }
 
 /// The ranges `[0, s_1), [s_1, s_2), ..., [s_k, n)` of experiments separated by `seams`.
@@ -68,6 +72,34 @@ pub fn experiment_ranges(n: usize, seams: &[usize]) -> Vec<std::ops::Range<usize
         start = s;
     }
     out.push(start..n);
+    out
+}
+
+/// The stretches of consecutive observed outputs: the experiments separated by `seams`, cut
+/// at every missing sample of `missing` (sorted), empty stretches left out. What methods that
+/// need an unbroken output history (ARX starts, spectral segments, lagged residual
+/// correlations) work on (METHOD.md 21).
+pub fn observed_ranges(n: usize, seams: &[usize], missing: &[usize]) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::with_capacity(seams.len() + missing.len() + 1);
+    let mut gaps = missing.iter().copied().peekable();
+    for e in experiment_ranges(n, seams) {
+        let mut start = e.start;
+        while let Some(&t) = gaps.peek() {
+            if t >= e.end {
+                break;
+            }
+            gaps.next();
+            if t >= start {
+                if t > start {
+                    out.push(start..t);
+                }
+                start = t + 1;
+            }
+        }
+        if start < e.end {
+            out.push(start..e.end);
+        }
+    }
     out
 }
 
@@ -100,7 +132,7 @@ impl Record {
                 return Err(input_error(&path, format!("sample {i} of {name} is {}, not a finite number", x[i])));
             }
         }
-        Ok(Record { path, u: inputs.concat(), y, u_names, y_name: "y".into(), seams: Vec::new() })
+        Ok(Record { path, u: inputs.concat(), y, u_names, y_name: "y".into(), seams: Vec::new(), missing: Vec::new() })
     }
 
     /// Several experiments as one record: the samples one after the other, with a seam where
@@ -121,7 +153,9 @@ impl Record {
         }
         let mut all = records.remove(0);
         for r in records {
-            all.seams.push(all.y.len());
+            let at = all.y.len();
+            all.seams.push(at);
+            all.missing.extend(r.missing.iter().map(|t| t + at));
             all.y.extend_from_slice(&r.y);
         }
         all.u = u;
@@ -375,7 +409,15 @@ pub fn read_record_inputs(path: &Path, u: &[ColumnRef], y: &ColumnRef, opts: &Re
             return Err(input_error(path, format!("input column '{n}' is named twice (as {} and as {})", u[j], u[i])));
         }
     }
-    Ok(Record { path: path.to_path_buf(), u: values.concat(), y, u_names: names, y_name, seams: Vec::new() })
+    Ok(Record {
+        path: path.to_path_buf(),
+        u: values.concat(),
+        y,
+        u_names: names,
+        y_name,
+        seams: Vec::new(),
+        missing: Vec::new(),
+    })
 }
 
 /// Reads the named numeric columns of a file, all rows, default dialect, in the order of

@@ -32,3 +32,11 @@ fn row_ranges() {
     assert!(m.contains("rows [2, 6] reach past the end of the file: it has 5 data rows"), "{m}");
     assert!(check_rows([0, 3]).is_err() && check_rows([4, 3]).is_err() && check_rows([3, 3]).is_ok());
 }
+
+#[test]
+fn observed_ranges_cut_experiments_at_missing_outputs() {
+    assert_eq!(observed_ranges(10, &[], &[]), vec![0..10]);
+    assert_eq!(observed_ranges(10, &[4], &[0, 3, 4, 9]), vec![1..3, 5..9]);
+    assert_eq!(observed_ranges(6, &[3], &[2]), vec![0..2, 3..6]);
+    assert_eq!(observed_ranges(3, &[], &[0, 1, 2]), Vec::<std::ops::Range<usize>>::new());
+}

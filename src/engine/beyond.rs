@@ -54,7 +54,14 @@ pub fn beyond_edges(
         .into_par_iter()
         .filter_map(|big: Structure| {
             let mut ws = Workspace::new();
-            let prob = Problem { u: &inputs.est.u, y: &inputs.est.y, structure: big, offset, seams: &inputs.est.seams };
+            let prob = Problem {
+                u: &inputs.est.u,
+                y: &inputs.est.y,
+                structure: big,
+                offset,
+                seams: &inputs.est.seams,
+                missing: &inputs.est.missing,
+            };
             if inputs.est.len() < crate::data::min_samples_of(&big) {
                 return None;
             }

@@ -241,11 +241,19 @@ fn fit_records(
     let judge = Judge {
         validation: val.as_ref().map(|v| (&v.u[..], &v.y[..])),
         validation_seams: val.as_ref().map_or(&[][..], |v| &v.seams[..]),
+        validation_missing: val.as_ref().map_or(&[][..], |v| &v.missing[..]),
         band: spec.as_ref().map(|(s, bins)| (&s[..], &bins[..])),
         initial_state: req.initial_state,
         criterion_only: false,
     };
-    let prob = Problem { u: &est.u, y: &est.y, structure: *largest, offset: req.offset.estimated(), seams: &est.seams };
+    let prob = Problem {
+        u: &est.u,
+        y: &est.y,
+        structure: *largest,
+        offset: req.offset.estimated(),
+        seams: &est.seams,
+        missing: &est.missing,
+    };
     let mut ws = Workspace::new();
     let t0 = Instant::now();
     let estimate::OneFit { mut ls, mut huber, start, .. } =

@@ -205,6 +205,7 @@ pub(super) fn problem<'a>(row: &CellRow, inputs: &'a Inputs) -> Problem<'a> {
         structure: row.key.structure(),
         offset: inputs.levels.mode.estimated(),
         seams: &inputs.est.seams,
+        missing: &inputs.est.missing,
     }
 }
 

@@ -166,7 +166,10 @@ pub fn run(prob: &Problem, theta: &[f64], k: Option<f64>, settings: &Settings, o
         .into_par_iter()
         .map_init(Workspace::new, |ws, r| {
             let y = resampled(&yhat, &resid, block, settings.seed, r as u64);
-            let rep = Problem { y: &y, ..*prob };
+            // A drawn block carries its missing outputs (NaN residuals) with it: a replicate
+            // misses as many outputs as the record, where its blocks put them (METHOD.md 21.2).
+            let missing: Vec<usize> = (0..y.len()).filter(|&t| y[t].is_nan()).collect();
+            let rep = Problem { y: &y, missing: &missing, ..*prob };
             match k {
                 Some(k) => {
                     let one = fit_one(&rep, k, &judge, opts, ws);

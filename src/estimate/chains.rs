@@ -156,7 +156,7 @@ impl Chains {
         }
         let last = sols.iter().rposition(Option::is_some);
         // Criteria this small are rounding noise of an exact fit, equal whatever their ratio.
-        let floor = 1e-20 * prob.y.iter().map(|v| v * v).sum::<f64>() / prob.n() as f64;
+        let floor = 1e-20 * prob.mean_square_output();
         let mut best: Option<usize> = None;
         for (i, sol) in sols.iter().enumerate() {
             let Some(sol) = sol else { continue };
@@ -473,9 +473,9 @@ fn lower_start(prob: &Problem, loss: Loss, candidate: Vec<f64>, point: &[f64], w
     }
     ws.trial_yhat.resize(prob.n(), 0.0);
     prob.simulate(&candidate, &mut ws.trial_yhat);
-    let at_candidate = loss.criterion(prob.y, &ws.trial_yhat);
+    let at_candidate = prob.criterion(loss, &ws.trial_yhat);
     prob.simulate(point, &mut ws.trial_yhat);
-    (at_candidate < loss.criterion(prob.y, &ws.trial_yhat)).then_some(candidate)
+    (at_candidate < prob.criterion(loss, &ws.trial_yhat)).then_some(candidate)
 }
 
 /// The message of a caught panic.

@@ -63,16 +63,18 @@ pub struct Robust {
 /// Bisection steps on log kappa: the bracket [1e-8, 1e8] shrinks below 1e-12 relative.
 const SCALE_STEPS: usize = 100;
 
-/// The robust criteria of a Huber fit with threshold `gamma`, residuals `y - yhat` and `np`
-/// estimated parameters.
+/// The robust criteria of a Huber fit with threshold `gamma`, residuals `y - yhat` (over the
+/// observed outputs) and `np` estimated parameters.
 pub fn robust(y: &[f64], yhat: &[f64], gamma: f64, np: usize) -> Robust {
     let undefined = Robust { raic: f64::NAN, rbic: f64::NAN };
-    let n = y.len().min(yhat.len());
+    // A missing output (NaN in y, METHOD.md 21.2) is no sample of the likelihood.
+    let seen = || y.iter().zip(yhat).filter(|(a, _)| !a.is_nan());
+    let n = seen().count();
     if n == 0 || !(gamma.is_finite() && gamma > 0.0) {
         return undefined;
     }
     let (mut w, mut psi2, mut inside) = (0.0, 0.0, 0usize);
-    for e in y.iter().zip(yhat).map(|(a, b)| a - b) {
+    for e in seen().map(|(a, b)| a - b) {
         w += super::huber::rho(gamma, e);
         let p = e.clamp(-gamma, gamma);
         psi2 += p * p;

@@ -390,7 +390,14 @@ mod tests {
             .collect();
         let y = vec![0.0; n];
         for seams in [vec![], vec![700, 2100]] {
-            let prob = Problem { u: &u, y: &y, structure: Structure::siso(2, 2, 1), offset: true, seams: &seams };
+            let prob = Problem {
+                u: &u,
+                y: &y,
+                structure: Structure::siso(2, 2, 1),
+                offset: true,
+                seams: &seams,
+                missing: &[],
+            };
             let (b, f) = ([1.0, 0.5], [-0.6, 0.2]);
             let (mut xu, mut yh, mut xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
             prob.simulate_filtered(&theta_of(&b, &f, None), &mut xu, &mut yh, &mut xy);

@@ -22,6 +22,8 @@ pub struct Judge<'a> {
     /// The validation record's seams when it is several experiments
     /// ([`crate::data::Record::seams`]; empty: one).
     pub validation_seams: &'a [usize],
+    /// The validation record's missing outputs ([`crate::data::Record::missing`]).
+    pub validation_missing: &'a [usize],
     /// Spectral estimate of the estimation record, one per input
     /// ([`crate::spectral::estimate_inputs`]), and the bins of the fit band.
     pub band: Option<(&'a [SpectralEstimate], &'a [usize])>,
@@ -70,11 +72,15 @@ fn fit_per_experiment(prob: &Problem, y: &[f64], yhat: &[f64]) -> Option<Vec<f64
     (!prob.seams.is_empty()).then(|| prob.experiments().map(|e| fit_percent(&y[e.clone()], &yhat[e])).collect())
 }
 
-/// Fit percentage `100 (1 - ||y - yhat|| / ||y - mean(y)||)`.
+/// Fit percentage `100 (1 - ||y - yhat|| / ||y - mean(y)||)` over the observed outputs: a
+/// missing one (NaN in `y`, [`crate::data::Record::missing`]) is left out of both norms and the
+/// mean (METHOD.md 21.2).
 pub fn fit_percent(y: &[f64], yhat: &[f64]) -> f64 {
-    let mean = y.iter().sum::<f64>() / y.len() as f64;
-    let num: f64 = y.iter().zip(yhat).map(|(a, b)| (a - b) * (a - b)).sum();
-    let den: f64 = y.iter().map(|a| (a - mean) * (a - mean)).sum();
+    let seen = || y.iter().zip(yhat).filter(|(a, _)| !a.is_nan());
+    let count = seen().count();
+    let mean = seen().map(|(a, _)| a).sum::<f64>() / count as f64;
+    let num: f64 = seen().map(|(a, b)| (a - b) * (a - b)).sum();
+    let den: f64 = seen().map(|(a, _)| (a - mean) * (a - mean)).sum();
     100.0 * (1.0 - (num / den).sqrt())
 }
 
@@ -174,7 +180,7 @@ fn assess(prob: &Problem, theta: &[f64], loss: Loss, ws: &mut Workspace, judge: 
     let judging = Span::start(profile.as_deref(), Phase::Judge);
     let mut fit_val_exp = None;
     let fit_val = judge.validation.map(|(u, y)| {
-        let val = Problem { u, y, seams: judge.validation_seams, ..*prob };
+        let val = Problem { u, y, seams: judge.validation_seams, missing: judge.validation_missing, ..*prob };
         let judged = &mut ws.judged_val;
         judged.resize(y.len(), 0.0);
         val.simulate(theta, judged);
@@ -340,7 +346,7 @@ pub(crate) fn huber_from_solution(
             ws.resimulate(prob, &sol.theta);
         }
         (
-            huber::l1_contribution(prob.y, ws.yhat(), gamma),
+            huber::l1_contribution(prob.y, ws.yhat(), gamma, prob.n_obs()),
             assess(prob, &sol.theta, Loss::Huber { gamma }, ws, judge),
             super::criteria::robust(prob.y, ws.yhat(), gamma, prob.dim()),
         )
@@ -382,9 +388,11 @@ pub fn fit_ls_from(prob: &Problem, theta0: &[f64], judge: &Judge, opts: &SolverO
 
 fn ls_fit(prob: &Problem, sol: Solution, judge: &Judge, ws: &mut Workspace) -> LsFit {
     let yhat = ws.yhat();
-    let n = prob.n() as f64;
-    let mean_e = prob.y.iter().zip(yhat).map(|(a, b)| a - b).sum::<f64>() / n;
-    let var = prob.y.iter().zip(yhat).map(|(a, b)| (a - b - mean_e).powi(2)).sum::<f64>() / n;
+    // Over the observed outputs (a missing one is NaN in y).
+    let n = prob.n_obs() as f64;
+    let seen = || prob.y.iter().zip(yhat).filter(|(a, _)| !a.is_nan());
+    let mean_e = seen().map(|(a, b)| a - b).sum::<f64>() / n;
+    let var = seen().map(|(a, b)| (a - b - mean_e).powi(2)).sum::<f64>() / n;
     let (b, f) = flat_parts(&prob.structure, &sol.theta);
     let c = prob.offset_of(&sol.theta);
     let first = prob.structure.inputs()[0];
@@ -403,7 +411,7 @@ fn ls_fit(prob: &Problem, sol: Solution, judge: &Judge, ws: &mut Workspace) -> L
         f: f.to_vec(),
         offset: prob.offset.then_some(c),
         // V = (1/N) sum e^2 = 2 criterion, over every estimated parameter.
-        criteria: super::criteria::least_squares(2.0 * sol.criterion, prob.n(), prob.dim()),
+        criteria: super::criteria::least_squares(2.0 * sol.criterion, prob.n_obs(), prob.dim()),
         alternatives: Vec::new(),
     }
 }

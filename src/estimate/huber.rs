@@ -37,10 +37,15 @@ impl Loss {
 
     /// Mean loss over residuals `y - yhat`.
     pub fn criterion(self, y: &[f64], yhat: &[f64]) -> f64 {
-        let n = y.len() as f64;
+        self.total(y, yhat) / y.len() as f64
+    }
+
+    /// Summed loss over residuals `y - yhat` (a record with missing outputs sums its observed
+    /// runs: [`super::Problem::criterion`]).
+    pub fn total(self, y: &[f64], yhat: &[f64]) -> f64 {
         match self {
-            Loss::LeastSquares => sum_over(y, yhat, |e| e * e) * 0.5 / n,
-            Loss::Huber { gamma } => sum_over(y, yhat, |e| rho(gamma, e)) / n,
+            Loss::LeastSquares => sum_over(y, yhat, |e| e * e) * 0.5,
+            Loss::Huber { gamma } => sum_over(y, yhat, |e| rho(gamma, e)),
         }
     }
 }
@@ -73,10 +78,11 @@ pub fn rho(g: f64, x: f64) -> f64 {
     m * (a - 0.5 * m)
 }
 
-/// L1-contribution: the share of residuals beyond gamma.
-pub fn l1_contribution(y: &[f64], yhat: &[f64], gamma: f64) -> f64 {
+/// L1-contribution: the share of residuals beyond gamma, over the observed outputs (a missing
+/// output's NaN residual is never beyond gamma; `observed` is their count).
+pub fn l1_contribution(y: &[f64], yhat: &[f64], gamma: f64, observed: usize) -> f64 {
     let c = y.iter().zip(yhat).filter(|(a, b)| (*a - *b).abs() > gamma).count();
-    c as f64 / y.len() as f64
+    c as f64 / observed as f64
 }
 
 #[cfg(test)]

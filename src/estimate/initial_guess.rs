@@ -184,6 +184,7 @@ fn backfit(prob: &Problem) -> Vec<f64> {
                 structure: crate::oe::Structure::siso(o.nb, o.nf, o.delay),
                 offset: prob.offset,
                 seams: prob.seams,
+                missing: prob.missing,
             };
             let sse = |th: &[f64]| {
                 let e: f64 = one.simulate_vec(th).iter().zip(&target).map(|(a, b)| (a - b) * (a - b)).sum();

@@ -138,6 +138,12 @@ pub fn add_free_response_in(f: &[f64], nb: usize, delay: usize, y: &[f64], yhat:
     let reach = (n - 1 + len).min(n_obs);
     s.r.clear();
     s.r.extend(y[..reach].iter().zip(&yhat[..reach]).map(|(a, b)| a - b));
+    // A missing output (NaN in y, METHOD.md 21.2) is no equation of the least squares: its
+    // residual leaves the right-hand side here and its row the Gram matrix below.
+    let missing: Vec<usize> = (0..reach).filter(|&t| y[t].is_nan()).collect();
+    for &t in &missing {
+        s.r[t] = 0.0;
+    }
     let r = &s.r;
     // rhs_j = sum_t h[t - j] r[t];  G_ij = sum_{s <= N-1-max(i,j)} h[s] h[s + |i-j|], which is
     // the lag's full product R(lag) = sum_{s < len - lag} h[s] h[s + lag] less at most j end
@@ -159,6 +165,15 @@ pub fn add_free_response_in(f: &[f64], nb: usize, delay: usize, y: &[f64], yhat:
             let v = full[lag] - tail;
             g[i * n + j] = v;
             g[j * n + i] = v;
+        }
+    }
+    for &t in &missing {
+        // Row t of the basis: h[t - j] for the columns j <= t within h's reach.
+        let cols = t.saturating_sub(len - 1)..(t + 1).min(n);
+        for i in cols.clone() {
+            for j in cols.clone() {
+                g[i * n + j] -= h[t - i] * h[t - j];
+            }
         }
     }
     let Some(x) = solve_ridged(&g, &rhs, n) else { return };

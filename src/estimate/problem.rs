@@ -1,6 +1,7 @@
 //! One estimation problem (a record and a model structure) and the result of minimising a
 //! criterion on it.
 
+use super::huber::Loss;
 use super::layout::Layout;
 use super::options::Termination;
 use crate::oe::{self, Orders, Structure};
@@ -21,6 +22,10 @@ pub struct Problem<'a> {
     /// criterion sums over all samples; the simulation and the Jacobian signals restart from
     /// zero at every seam and no lag reaches across one (METHOD.md 16).
     pub seams: &'a [usize],
+    /// The samples whose output is missing ([`crate::data::Record::missing`]; `y` is NaN
+    /// there): simulated through, their residuals left out of the criterion, the normal
+    /// equations and every count N (METHOD.md 21). Empty: a complete record.
+    pub missing: &'a [usize],
 }
 
 impl<'a> Problem<'a> {
@@ -211,7 +216,8 @@ impl<'a> Problem<'a> {
         }
     }
 
-    /// The problem restricted to the samples `..rows` (the seams before it kept).
+    /// The problem restricted to the samples `..rows` (the seams and missing outputs before it
+    /// kept).
     pub fn head(&self, rows: usize) -> Problem<'a> {
         let seams = &self.seams[..self.seams.partition_point(|&s| s < rows)];
         let n = self.n();
@@ -222,8 +228,37 @@ impl<'a> Problem<'a> {
             assert!(rows == n, "the head of a several-input problem");
             self.u
         };
-        Problem { u, y: &self.y[..rows], seams, ..*self }
+        let missing = &self.missing[..self.missing.partition_point(|&t| t < rows)];
+        Problem { u, y: &self.y[..rows], seams, missing, ..*self }
     }
+    /// Number of observed outputs: N less the missing ones (METHOD.md 21.2). Every mean over
+    /// residuals (W, L1C, sigma, fit %, the criteria's N) divides by this.
+    pub fn n_obs(&self) -> usize {
+        self.n() - self.missing.len()
+    }
+
+    /// The runs of consecutive observed outputs (the complement of `missing`; seams do not
+    /// cut them: the criterion is a plain sum over samples).
+    pub fn observed(&self) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+        observed_runs(self.n(), self.missing)
+    }
+
+    /// The criterion `loss` at the simulated output `yhat`: the mean of rho over the observed
+    /// residuals ([`Loss::criterion`] of a complete record).
+    pub fn criterion(&self, loss: Loss, yhat: &[f64]) -> f64 {
+        if self.missing.is_empty() {
+            return loss.criterion(self.y, yhat);
+        }
+        let total: f64 = self.observed().map(|r| loss.total(&self.y[r.clone()], &yhat[r])).sum();
+        total / self.n_obs() as f64
+    }
+
+    /// The mean square of the observed outputs.
+    pub fn mean_square_output(&self) -> f64 {
+        let total: f64 = self.observed().map(|r| self.y[r].iter().map(|v| v * v).sum::<f64>()).sum();
+        total / self.n_obs().max(1) as f64
+    }
+
     pub fn layout(&self) -> Layout {
         Layout::new(self.structure)
     }
@@ -251,6 +286,13 @@ impl Solution {
     pub fn usable(&self) -> bool {
         self.termination.usable(self.criterion)
     }
+}
+
+/// The runs of `0..n` between the sorted indices `missing`, empty runs left out.
+pub fn observed_runs(n: usize, missing: &[usize]) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+    let ends = missing.iter().copied().chain(std::iter::once(n));
+    let starts = std::iter::once(0).chain(missing.iter().map(|t| t + 1));
+    starts.zip(ends).filter(|(a, b)| a < b).map(|(a, b)| a..b)
 }
 
 /// `yhat += c`: the offset sits outside the dynamics, so the Jacobian signals `xu` and

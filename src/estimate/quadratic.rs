@@ -115,12 +115,15 @@ pub fn doubt(model: &str, radius: f64, check: Option<&QuadraticCheck>, remedy: &
 pub fn check(prob: &Problem, theta: &[f64], loss: Loss, cov: &[f64]) -> QuadraticCheck {
     let d = prob.dim();
     assert_eq!(cov.len(), d * d, "a covariance of theta");
-    let n = prob.n();
-    let mut yhat = vec![0.0; n];
+    let mut yhat = vec![0.0; prob.n()];
     prob.simulate(theta, &mut yhat);
-    let w0 = loss.criterion(prob.y, &yhat);
+    let w0 = prob.criterion(loss, &yhat);
     let slope = evidence::slope(prob, loss, &yhat);
-    let s = prob.y.iter().zip(&yhat).map(|(y, yh)| loss.psi(y - yh).powi(2)).sum::<f64>() / n as f64 / slope;
+    // Over the observed outputs (a missing one is NaN in y, METHOD.md 21.2).
+    let n = prob.n_obs();
+    let s = prob.y.iter().zip(&yhat).filter(|(y, _)| !y.is_nan()).map(|(y, yh)| loss.psi(y - yh).powi(2)).sum::<f64>()
+        / n as f64
+        / slope;
     let predicted = STEP_STD * STEP_STD * s / (2.0 * n as f64);
     let p = faer::Mat::<f64>::from_fn(d, d, |i, j| 0.5 * (cov[i * d + j] + cov[j * d + i]));
     let eig = crate::dense::symmetric_eigen(p.as_ref());
@@ -144,7 +147,7 @@ pub fn check(prob: &Problem, theta: &[f64], loss: Loss, cov: &[f64]) -> Quadrati
                 continue;
             }
             prob.simulate(&point, &mut yhat);
-            rise[side] = loss.criterion(prob.y, &yhat) - w0;
+            rise[side] = prob.criterion(loss, &yhat) - w0;
             out.drop = out.drop.max(-rise[side] / predicted);
         }
         if rise.iter().all(|r| r.is_finite()) {

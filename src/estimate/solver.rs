@@ -74,7 +74,7 @@ fn minimise_unprofiled(
         reflections += 1;
     }
     let lay = prob.layout();
-    let y_scale = prob.y.iter().map(|v| v * v).sum::<f64>() / n as f64;
+    let y_scale = prob.mean_square_output();
     // Residuals at this level are rounding noise of the simulation.
     let exact_level = 1e-26 * y_scale.max(f64::MIN_POSITIVE);
 
@@ -83,7 +83,9 @@ fn minimise_unprofiled(
     // xy = (1/F) yhat), so an accepted trial point needs no further filtering.
     // Variable projection is written for one input so far: several inputs take the full
     // Levenberg-Marquardt step (the same minimum, more iterations).
-    let separable = opts.method == SolverMethod::Separable && prob.m() == 1;
+    // A record with missing outputs too: the projection's inner least squares is written for a
+    // complete record (METHOD.md 21.2).
+    let separable = opts.method == SolverMethod::Separable && prob.m() == 1 && prob.missing.is_empty();
     let mut crit = if separable {
         let ws = &mut *ws;
         let c = separable::project(
@@ -101,7 +103,7 @@ fn minimise_unprofiled(
     } else {
         prob.simulate_filtered(&ws.theta, &mut ws.xu, &mut ws.yhat, &mut ws.xy);
         add_offset(&mut ws.yhat, prob.offset_of(&ws.theta));
-        loss.criterion(prob.y, &ws.yhat)
+        prob.criterion(loss, &ws.yhat)
     };
     let finish = |ws: &mut Workspace, crit, iterations, termination, reflections, lambda| Solution {
         theta: ws.theta.clone(),
@@ -118,7 +120,8 @@ fn minimise_unprofiled(
         ws.trace.push(crit);
     }
     let mut nu = 2.0;
-    let use_weights = !matches!(loss, Loss::LeastSquares);
+    // Missing outputs enter the normal equations with weight 0 (least squares too).
+    let use_weights = !matches!(loss, Loss::LeastSquares) || !prob.missing.is_empty();
 
     for it in 0..opts.max_iterations {
         if crit <= exact_level {
@@ -153,8 +156,22 @@ fn minimise_unprofiled(
                 }
             }
         }
+        if !prob.missing.is_empty() {
+            if loss == Loss::LeastSquares {
+                ws.w[..n].fill(1.0);
+            }
+            for &t in prob.missing {
+                ws.r[t] = 0.0;
+                ws.w[t] = 0.0;
+            }
+        }
         let w = if use_weights { Some(&ws.w[..]) } else { None };
         ws.ne.build_all(&lay, prob.offset, prob.seams, &ws.xu, &ws.xy, w, &ws.r, &mut ws.h, &mut ws.g);
+        if !prob.missing.is_empty() {
+            // The normal equations average over all N rows; the criterion over the observed.
+            let scale = n as f64 / prob.n_obs() as f64;
+            ws.h[..d * d].iter_mut().chain(ws.g[..d].iter_mut()).for_each(|v| *v *= scale);
+        }
         if ws.h.iter().any(|v| !v.is_finite()) || ws.g.iter().any(|v| !v.is_finite()) {
             return finish(ws, crit, it, Termination::NonFinite, reflections, lambda);
         }
@@ -226,7 +243,7 @@ fn minimise_unprofiled(
             } else {
                 prob.simulate_filtered(&ws.trial, &mut ws.trial_xu, &mut ws.trial_yhat, &mut ws.trial_xy);
                 add_offset(&mut ws.trial_yhat, prob.offset_of(&ws.trial));
-                loss.criterion(prob.y, &ws.trial_yhat)
+                prob.criterion(loss, &ws.trial_yhat)
             };
             if new_crit.is_finite() && new_crit < crit {
                 let rho = if pred > 0.0 { (crit - new_crit) / pred } else { 0.0 };

@@ -76,6 +76,7 @@ impl Context<'_> {
         Judge {
             validation: self.val.map(|v| (&v.u[..], &v.y[..])),
             validation_seams: self.val.map_or(&[][..], |v| &v.seams[..]),
+            validation_missing: self.val.map_or(&[][..], |v| &v.missing[..]),
             band: self.band,
             initial_state: self.initial_state,
             criterion_only: false,
@@ -89,6 +90,7 @@ impl Context<'_> {
             structure: *pair,
             offset: self.levels.mode.estimated(),
             seams: &self.est.seams,
+            missing: &self.est.missing,
         }
     }
 

@@ -165,7 +165,8 @@ pub fn pole_tests(u: &[f64], m: usize, y: &[f64], seams: &[usize], delays: &[usi
         .enumerate()
         .map(|(i, fit)| {
             let (structure, fit) = fit.as_ref()?;
-            let prob = Problem { u: input(i), y: &seen[i], structure: *structure, offset: true, seams: &seams };
+            let prob =
+                Problem { u: input(i), y: &seen[i], structure: *structure, offset: true, seams: &seams, missing: &[] };
             test_poles(&prob, fit)
         })
         .collect()
@@ -181,7 +182,7 @@ fn head_seams(seams: &[usize], head: usize) -> Vec<usize> {
 fn fitted<'a>(u: &'a [f64], y: &'a [f64], seams: &'a [usize], delay: usize) -> Option<(Problem<'a>, IvFit)> {
     let fits: Vec<(Problem, IvFit)> = (1..=ORDER)
         .filter_map(|n| {
-            let prob = Problem { u, y, structure: Structure::siso(n, n, delay), offset: true, seams };
+            let prob = Problem { u, y, structure: Structure::siso(n, n, delay), offset: true, seams, missing: &[] };
             let from_arx = arx(&prob).and_then(|a| iv_fit(&prob, a[..2 * n].to_vec()));
             let mut slow = vec![0.0; 2 * n];
             slow[0] = 1.0;
