@@ -79,6 +79,39 @@ fn a_minimisation_with_pole_reflections_allocates_only_its_result() {
 }
 
 #[test]
+fn a_minimisation_with_missing_outputs_allocates_only_its_result() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/jobs/data/piezo_est.csv");
+    let rec = oesweep::data::read_record(path.as_ref(), "u", "y").unwrap();
+    let complete =
+        Problem { u: &rec.u, y: &rec.y, structure: Structure::siso(6, 6, 1), offset: true, seams: &[], missing: &[] };
+    let start = initial_guess::initial_guesses(&complete).remove(0);
+    // Every 17th output and a burst of 40 missing (METHOD.md 21.2): the least-squares fit runs
+    // the weighted path with weight 0 there.
+    let missing: Vec<usize> = (0..rec.y.len()).filter(|t| t % 17 == 5 || (1000..1040).contains(t)).collect();
+    let mut y = rec.y.clone();
+    for &t in &missing {
+        y[t] = f64::NAN;
+    }
+    let prob = Problem { y: &y, missing: &missing, ..complete };
+    let opts = SolverOptions::default();
+    let mut ws = Workspace::new();
+    let run = |ws: &mut Workspace| {
+        let ls = solver::minimise(&prob, Loss::LeastSquares, &start, &opts, ws);
+        let gamma = 0.5 * (2.0 * ls.criterion).sqrt();
+        let h = solver::minimise(&prob, Loss::Huber { gamma }, &ls.theta, &opts.huber(), ws);
+        (ls, h)
+    };
+    let (ls, _) = run(&mut ws);
+    assert!(ls.criterion.is_finite() && ls.iterations > 0, "{ls:?}");
+    let before = allocations();
+    let (ls2, h2) = run(&mut ws);
+    let allocations = allocations() - before;
+    assert_eq!(allocations, 2, "{allocations} allocations in two sized minimisations");
+    assert_eq!(ls2.criterion, ls.criterion);
+    assert!(h2.iterations > 0 && h2.criterion.is_finite());
+}
+
+#[test]
 fn a_minimisation_of_several_inputs_allocates_only_its_result() {
     // Two inputs, an offset and 5 % spikes: the Huber fit at a small gamma runs both
     // weighted paths of the several inputs' normal equations (from the least-squares fit, which
