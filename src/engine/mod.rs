@@ -97,8 +97,9 @@ fn prepare_job(job: job::ValidJob) -> Result<Prepared> {
     let spectral = match job.job.band_hz {
         Some([lo, hi]) => {
             let est = &inputs.est;
-            let s = spectral::estimate_inputs(&est.u, job.m, &est.y, &est.seams, job.ts(), job.job.spectrum)
-                .map_err(|e| Error::data(&job.job.data.first().path, e.to_string()))?;
+            let s =
+                spectral::estimate_inputs(&est.u, job.m, &est.y, &est.seams, &est.missing, job.ts(), job.job.spectrum)
+                    .map_err(|e| Error::data(&job.job.data.first().path, e.to_string()))?;
             // Every input's estimate has the same usable bins.
             let bins = s[0].band(lo, hi);
             if bins.is_empty() {

@@ -232,7 +232,7 @@ fn fit_records(
     let first = largest.inputs()[0];
     let spec = match (req.band, req.ts) {
         (Some((lo, hi)), Some(ts)) => {
-            let s = spectral::estimate_inputs(&est.u, largest.m(), &est.y, &est.seams, ts, req.spectrum)?;
+            let s = spectral::estimate_inputs(&est.u, largest.m(), &est.y, &est.seams, &est.missing, ts, req.spectrum)?;
             let bins = s[0].band(lo, hi);
             Some((s, bins))
         }

@@ -79,7 +79,7 @@ pub fn spectrum_arrays(rec: &data::Record, ts: f64, method: spectral::SpectrumMe
 }
 
 fn spectrum_of(rec: &data::Record, ts: f64, method: spectral::SpectrumMethod) -> Result<SpectrumReport> {
-    let ests = spectral::estimate_inputs(&rec.u, rec.inputs(), &rec.y, &rec.seams, ts, method)
+    let ests = spectral::estimate_inputs(&rec.u, rec.inputs(), &rec.y, &rec.seams, &rec.missing, ts, method)
         .map_err(|e| Error::data(&rec.path, e.to_string()))?;
     let est = &ests[0];
     let bins: Vec<usize> = (0..est.freq_hz.len()).filter(|&k| est.re[k].is_finite()).collect();

@@ -21,6 +21,12 @@
 //! whose rounding error grows with `cond(J_s)` instead of `cond(J_s)^2` ([`qr_inverse`]).
 //!
 //! **Residual tests** (whiteness, independence from the input): [`super::residual_tests`].
+//!
+//! **Missing outputs** (METHOD.md 21.3): the sums run over the observed samples O only, `N_O =
+//! |O|` in every mean: `kappa = (1/N_O) sum_O psi_g(e)^2 / ((1/N_O) #{t in O: |e_t| <= gamma})^2`
+//! and `Cov = kappa (sum_O psi_t psi_t^T)^-1`. A missing sample's Jacobian row is left out (the
+//! normal equations give it weight 0, the QR path a zero row); its prediction still depends on
+//! theta, but no residual is there to be explained.
 
 use faer::prelude::*;
 
@@ -28,7 +34,8 @@ use super::huber::Loss;
 use super::normal::NormalEquations;
 use super::problem::Problem;
 use super::residual_tests::{
-    MAX_LAG, centre_into, independence_p, lagged_dots2_within, residual_correlations, whiteness_p,
+    MAX_LAG, centre_into, centre_observed, independence_p, lagged_dots2_within, missing_rows_gram, observed_pairs,
+    residual_correlations, whiteness_p,
 };
 use crate::oe;
 
@@ -66,16 +73,24 @@ pub struct Scratch {
     /// The input `uc` and `ruu` were computed from.
     input_of: Vec<f64>,
     seams_of: Vec<usize>,
+    missing_of: Vec<usize>,
     uc: Vec<f64>,
     ruu: Vec<f64>,
+    /// The missing samples' lag vectors' outer products, summed ([`missing_rows_gram`]).
+    less: Vec<f64>,
+    /// Row weights of the normal equations: 0 at a missing output, 1 elsewhere.
+    w: Vec<f64>,
+    /// The observed pairs per lag of the whiteness test ([`observed_pairs`]).
+    pairs: Vec<f64>,
 }
 
 impl Scratch {
-    /// The centred input and its autocorrelation at lags 0..=m, computed when `u` changed.
-    fn input(&mut self, u: &[f64], seams: &[usize], m: usize) {
+    /// The centred input and its autocorrelation at lags 0..=m, and with missing outputs their
+    /// correction and the observed pairs, computed when `u` changed.
+    fn input(&mut self, u: &[f64], seams: &[usize], missing: &[usize], m: usize) {
         // Compared by value (one pass, far cheaper than the m + 1 lagged products): a
         // record's buffer may be freed and its address reused by another record.
-        if self.input_of == u && self.seams_of == seams && self.ruu.len() == m + 1 {
+        if self.input_of == u && self.seams_of == seams && self.missing_of == missing && self.ruu.len() == m + 1 {
             return;
         }
         centre_into(u, &mut self.uc);
@@ -88,6 +103,10 @@ impl Scratch {
         self.input_of.extend_from_slice(u);
         self.seams_of.clear();
         self.seams_of.extend_from_slice(seams);
+        self.missing_of.clear();
+        self.missing_of.extend_from_slice(missing);
+        missing_rows_gram(&self.uc, seams, missing, m, &mut self.less);
+        self.pairs = observed_pairs(u.len(), seams, missing, m);
     }
 }
 
@@ -103,9 +122,13 @@ pub fn evidence(
     xy: &[f64],
     s: &mut Scratch,
 ) -> Evidence {
-    let n = prob.n();
+    let n = prob.n_obs();
     s.r.clear();
     s.r.extend(prob.y.iter().zip(yhat).map(|(y, yh)| loss.psi(y - yh)));
+    // A missing output's residual (NaN) counts in no sum.
+    for &t in prob.missing {
+        s.r[t] = 0.0;
+    }
     let slope = slope(prob, loss, yhat);
     let d = prob.dim();
     let cov = covariance_in(prob, xu, xy, slope, s);
@@ -126,16 +149,16 @@ pub fn evidence(
         .zip(theta)
         .map(|(s, v)| if s.is_finite() { s / v.abs() } else { f64::INFINITY })
         .fold(0.0, |m: f64, v| if v.is_nan() { f64::INFINITY } else { m.max(v) });
-    centre_into(&s.r, &mut s.e);
+    centre_observed(&s.r, prob.missing, &mut s.e);
     let m = MAX_LAG.min(n.saturating_sub(2));
     // Independence from every input; the least independent one is reported.
     let (mut ree, mut reu) = ([0.0; MAX_LAG + 1], [0.0; MAX_LAG + 1]);
     let (ree, reu) = (&mut ree[..m + 1], &mut reu[..m + 1]);
     let mut indep = f64::INFINITY;
     for i in 0..prob.m() {
-        s.input(prob.input(i), prob.seams, m);
+        s.input(prob.input(i), prob.seams, prob.missing, m);
         residual_correlations(&s.e, &s.uc, prob.seams, ree, reu);
-        indep = indep.min(independence_p(reu, ree[0], n, &s.ruu));
+        indep = indep.min(independence_p(reu, ree[0], n, &s.ruu, &s.less));
     }
     Evidence {
         b_std: b,
@@ -144,7 +167,7 @@ pub fn evidence(
         // An infinite ratio (an undetermined parameter) is a finding; a NaN or a non-finite
         // p-value is not a number to report.
         max_rel_std: Some(max_rel_std).filter(|v| !v.is_nan()),
-        resid_white_p: Some(whiteness_p(ree, n)).filter(|v| v.is_finite()),
+        resid_white_p: Some(whiteness_p(ree, n, &s.pairs)).filter(|v| v.is_finite()),
         resid_indep_p: Some(indep).filter(|v| v.is_finite()),
         cancellations,
     }
@@ -169,12 +192,13 @@ fn cancellations(prob: &Problem, theta: &[f64], cov: &[f64]) -> Option<u32> {
     Some(total)
 }
 
-/// `mean psi_g'(e)`: 1 for least squares, the share of the L2 set for Huber.
+/// `mean psi_g'(e)` over the observed outputs: 1 for least squares, the share of the L2 set for
+/// Huber (a missing output's NaN residual is in no set).
 pub(crate) fn slope(prob: &Problem, loss: Loss, yhat: &[f64]) -> f64 {
     match loss {
         Loss::LeastSquares => 1.0,
         Loss::Huber { gamma } => {
-            prob.y.iter().zip(yhat).filter(|(y, yh)| (**y - **yh).abs() <= gamma).count() as f64 / prob.n() as f64
+            prob.y.iter().zip(yhat).filter(|(y, yh)| (**y - **yh).abs() <= gamma).count() as f64 / prob.n_obs() as f64
         }
     }
 }
@@ -184,32 +208,54 @@ fn covariance_in(prob: &Problem, xu: &[f64], xy: &[f64], slope: f64, s: &mut Scr
     let d = prob.dim();
     s.h.resize(d * d, 0.0);
     s.g.resize(d, 0.0);
-    covariance_of(prob, xu, xy, &s.r, slope, &mut s.ne, &mut s.h, &mut s.g, &mut s.rq)
+    let w = observed_weights(prob, &mut s.w);
+    covariance_of(prob, xu, xy, &s.r, w, slope, &mut s.ne, &mut s.h, &mut s.g, &mut s.rq)
+}
+
+/// The normal equations' row weights of a record with missing outputs (0 at a missing one, 1
+/// elsewhere) in `buf`; None for a complete record (the unweighted form, as before).
+fn observed_weights<'b>(prob: &Problem, buf: &'b mut Vec<f64>) -> Option<&'b [f64]> {
+    if prob.missing.is_empty() {
+        return None;
+    }
+    buf.clear();
+    buf.resize(prob.n(), 1.0);
+    for &t in prob.missing {
+        buf[t] = 0.0;
+    }
+    Some(&buf[..])
 }
 
 /// The covariance matrix of `theta` (d x d, row-major; d = `prob.dim()`) of the model fitted
 /// with `loss`, whose output on the estimation record is `yhat`; None when the Gram matrix is
 /// singular.
 pub fn covariance(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64]) -> Option<Vec<f64>> {
-    let r: Vec<f64> = prob.y.iter().zip(yhat).map(|(y, yh)| loss.psi(y - yh)).collect();
+    let mut r: Vec<f64> = prob.y.iter().zip(yhat).map(|(y, yh)| loss.psi(y - yh)).collect();
+    for &t in prob.missing {
+        r[t] = 0.0;
+    }
     let (n, m) = (prob.n(), prob.m());
     let (mut xu, mut yh, mut xy) = (vec![0.0; m * n], vec![0.0; n], vec![0.0; m * n]);
     prob.simulate_filtered(theta, &mut xu, &mut yh, &mut xy);
     let d = prob.dim();
     let (mut h, mut g) = (vec![0.0; d * d], vec![0.0; d]);
     let slope = slope(prob, loss, yhat);
-    let mut rq = Vec::new();
-    covariance_of(prob, &xu, &xy, &r, slope, &mut NormalEquations::default(), &mut h, &mut g, &mut rq)
+    let (mut rq, mut w) = (Vec::new(), Vec::new());
+    let w = observed_weights(prob, &mut w);
+    covariance_of(prob, &xu, &xy, &r, w, slope, &mut NormalEquations::default(), &mut h, &mut g, &mut rq)
 }
 
 /// `kappa / N h^-1` with `kappa = mean(r^2) / slope^2` and `h = (1/N) sum psi psi^T` from the
-/// Jacobian signals `xu`, `xy` (`h`, `g`: d x d and d buffers).
+/// Jacobian signals `xu`, `xy` (`h`, `g`: d x d and d buffers); with missing outputs N is the
+/// observed count, the sums are over the observed samples (`w`: 0 at a missing one) and `r`
+/// is 0 at a missing sample.
 #[allow(clippy::too_many_arguments)]
 fn covariance_of(
     prob: &Problem,
     xu: &[f64],
     xy: &[f64],
     r: &[f64],
+    w: Option<&[f64]>,
     slope: f64,
     ne: &mut NormalEquations,
     h: &mut [f64],
@@ -217,13 +263,18 @@ fn covariance_of(
     rq: &mut Vec<f64>,
 ) -> Option<Vec<f64>> {
     let d = prob.dim();
-    let n = prob.n();
-    if slope <= 0.0 {
+    let n = prob.n_obs();
+    if slope <= 0.0 || n == 0 {
         return None;
     }
     let kappa = r.iter().map(|v| v * v).sum::<f64>() / n as f64 / (slope * slope);
     let lay = prob.layout();
-    ne.build_all(&lay, prob.offset, prob.seams, xu, xy, None, r, h, g);
+    ne.build_all(&lay, prob.offset, prob.seams, xu, xy, w, r, h, g);
+    if w.is_some() {
+        // The normal equations average over all N rows: over the observed ones instead.
+        let scale = prob.n() as f64 / n as f64;
+        h[..d * d].iter_mut().for_each(|v| *v *= scale);
+    }
     // The inverse from a Cholesky factor of the diagonally scaled matrix (OE Gram matrices
     // span many decades).
     let scale: Vec<f64> = (0..d).map(|i| h[i * d + i].sqrt()).collect();
@@ -264,11 +315,12 @@ const QR_ROWS: usize = 1024;
 fn qr_inverse(prob: &Problem, xu: &[f64], xy: &[f64], scale: &[f64], rq: &mut Vec<f64>) -> Option<Vec<f64>> {
     let d = prob.dim();
     let n = prob.n();
+    let n_obs = prob.n_obs();
     let lay = prob.layout();
     let d0 = lay.dim();
     rq.clear();
     rq.resize(d * d, 0.0);
-    let root_n = (n as f64).sqrt();
+    let root_n = (n_obs as f64).sqrt();
     // Blocks of QR_ROWS rows stacked under the R so far, factored by faer's blocked
     // Householder QR: the same O(N d^2) as rotations row by row at a fraction of the time.
     let mut block = faer::Mat::<f64>::zeros(d + QR_ROWS, d);
@@ -298,6 +350,11 @@ fn qr_inverse(prob: &Problem, xu: &[f64], xy: &[f64], scale: &[f64], rq: &mut Ve
                 }
             } else {
                 out.fill(factor);
+            }
+            // A missing output's row is no equation: a zero row adds nothing to R^T R.
+            let here = &prob.missing[prob.missing.partition_point(|&t| t < start)..];
+            for &t in here.iter().take_while(|&&t| t < start + m) {
+                out[t - start] = 0.0;
             }
         }
         let r = crate::dense::qr_r(block.as_ref().subrows(0, r_rows + m));

@@ -7,6 +7,13 @@
 //! previous estimate, and solves `(Z^T Phi) theta = Z^T y`. Two IV passes are made; F is made
 //! stable by root reflection after each, and the candidate with the lowest least-squares
 //! output-error criterion is returned.
+//!
+//! Missing outputs (METHOD.md 21.3): a regression row whose target `y_t` or one of its output
+//! lags `y_{t-1} .. y_{t-nF}` is missing is left out ([`kept_rows`]): the row's equation needs
+//! those outputs, and taking them as zero would be a wrong equation. The rows kept are those of
+//! the stretches of observed outputs (`data::observed_ranges`), less the first nF of a stretch
+//! that a gap (not its experiment's start) begins; the input lags may reach back across a gap
+//! (the inputs are complete), never across a seam.
 
 use super::problem::Problem;
 use faer::Mat;
@@ -70,6 +77,30 @@ pub(super) fn cross_product(
     out
 }
 
+/// The regression rows kept on a record with missing outputs (see the module doc): every row of
+/// a stretch of observed outputs that begins at its experiment's start (its lags before the
+/// start are zero, as a complete record's), the rest of a stretch from its (nF+1)-th row on.
+/// None for a complete record: every row, the code path of before.
+fn kept_rows(prob: &Problem) -> Option<Vec<bool>> {
+    if prob.missing.is_empty() {
+        return None;
+    }
+    let lags = prob.structure.inputs().iter().map(|o| o.nf).max().unwrap_or(0);
+    let mut keep = vec![false; prob.n()];
+    for r in crate::data::observed_ranges(prob.n(), prob.seams, prob.missing) {
+        let first = if prob.experiment_start(r.start) == r.start { r.start } else { (r.start + lags).min(r.end) };
+        keep[first..r.end].fill(true);
+    }
+    Some(keep)
+}
+
+/// [`regressor`] of the rows kept (`keep` of [`kept_rows`]), a zero row for the others: a zero
+/// row adds nothing to `R^T R` or `Z^T A`, so the streamed products below are those of the
+/// kept rows alone.
+fn kept_regressor(prob: &Problem, keep: Option<&[bool]>, s2: &[f64], t: usize, c: usize) -> f64 {
+    if keep.is_none_or(|k| k[t]) { regressor(prob, s2, t, c) } else { 0.0 }
+}
+
 /// The regression's last coefficient `F(1) c` as the offset c (F is stable, so F(1) > 0).
 fn offset_from_regression(prob: &Problem, theta: &mut [f64]) {
     if prob.offset {
@@ -88,7 +119,9 @@ fn finite(v: &[f64]) -> bool {
 /// whole regression would be).
 pub fn arx(prob: &Problem) -> Option<Vec<f64>> {
     let d = prob.dim();
-    let r = r_factor(prob.n(), d + 1, |t, c| regressor(prob, prob.y, t, c));
+    let keep = kept_rows(prob);
+    let keep = keep.as_deref();
+    let r = r_factor(prob.n(), d + 1, |t, c| kept_regressor(prob, keep, prob.y, t, c));
     let rows = r.nrows();
     let lhs = Mat::from_fn(rows, d, |i, c| r[(i, c)]);
     let rhs = Mat::from_fn(rows, 1, |i, _| r[(i, d)]);
@@ -110,8 +143,16 @@ fn iv_step(prob: &Problem, theta: &[f64]) -> Option<Vec<f64>> {
         return None;
     }
     let d = prob.dim();
+    let keep = kept_rows(prob);
+    let keep = keep.as_deref();
     // Z^T [Phi | y]: the system and its right-hand side in one product.
-    let zt = cross_product(prob.n(), d, d + 1, |t, c| regressor(prob, &x, t, c), |t, c| regressor(prob, prob.y, t, c));
+    let zt = cross_product(
+        prob.n(),
+        d,
+        d + 1,
+        |t, c| kept_regressor(prob, keep, &x, t, c),
+        |t, c| kept_regressor(prob, keep, prob.y, t, c),
+    );
     let zt_phi = Mat::from_fn(d, d, |i, c| zt[(i, c)]);
     let zt_y = Mat::from_fn(d, 1, |i, _| zt[(i, d)]);
     let sol = crate::dense::Lu::new(zt_phi.as_ref()).solve(zt_y.as_ref());
@@ -186,8 +227,16 @@ fn backfit(prob: &Problem) -> Vec<f64> {
                 seams: prob.seams,
                 missing: prob.missing,
             };
+            // Over the observed outputs (a missing one is NaN in the target; elsewhere a NaN is
+            // a diverged simulation's, which makes the start's error infinite).
             let sse = |th: &[f64]| {
-                let e: f64 = one.simulate_vec(th).iter().zip(&target).map(|(a, b)| (a - b) * (a - b)).sum();
+                let e: f64 = one
+                    .simulate_vec(th)
+                    .iter()
+                    .zip(&target)
+                    .filter(|(_, b)| one.missing.is_empty() || !b.is_nan())
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum();
                 if e.is_finite() { e } else { f64::INFINITY }
             };
             let Some(best) = initial_guesses(&one).into_iter().min_by(|a, b| sse(a).total_cmp(&sse(b))) else {

@@ -11,6 +11,16 @@
 //! within each experiment of a record (`seams`) and in one pass over the record
 //! ([`residual_correlations`]). The report's correlation plot ([`correlation_functions`])
 //! shows the same correlations.
+//!
+//! Missing outputs (METHOD.md 21.3): the residuals are centred over the observed samples O and
+//! set to 0 at a missing one ([`centre_observed`]), so a lagged product counts only where the
+//! residuals it pairs are observed. `N = N_O` throughout. Whiteness: `rho_k = sum_{pairs} e_s
+//! e_{s+k} / sum_O e^2` over the `n_k` pairs with both residuals observed within one experiment
+//! ([`observed_pairs`]); under whiteness its variance is `n_k / N_O^2`, so `Q = N_O (N_O + 2)
+//! sum_k rho_k^2 / n_k` (a complete record: `n_k = N - k`, Ljung-Box's). Independence: `r_k =
+//! sum_{t in O} e_t u_{t-k}` has covariance `sigma_e^2 C`, `C = sum_{t in O} v_t v_t^T` with
+//! `v_t = (u_t, .., u_{t-M})`; C is the input's Toeplitz autocorrelation less the missing
+//! samples' `v_t v_t^T` ([`missing_rows_gram`]), and `zeta = r^T C^-1 r / sigma_e^2`.
 
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
@@ -58,8 +68,9 @@ pub(super) fn residual_correlations(e: &[f64], u: &[f64], seams: &[usize], ree: 
 }
 
 /// Ljung-Box p-value of `n` centred residuals over lags 1..=m from their autocorrelation
-/// `acf` at lags 0..=m ([`residual_correlations`]).
-pub(super) fn whiteness_p(acf: &[f64], n: usize) -> f64 {
+/// `acf` at lags 0..=m ([`residual_correlations`]); `pairs` are the observed pairs per lag of a
+/// record with missing outputs ([`observed_pairs`]; empty: `n - k`).
+pub(super) fn whiteness_p(acf: &[f64], n: usize, pairs: &[f64]) -> f64 {
     let m = acf.len() - 1;
     if m == 0 {
         return f64::NAN;
@@ -68,14 +79,16 @@ pub(super) fn whiteness_p(acf: &[f64], n: usize) -> f64 {
         return f64::NAN;
     }
     let nf = n as f64;
-    let q = nf * (nf + 2.0) * (1..=m).map(|k| (acf[k] / acf[0]).powi(2) / (nf - k as f64)).sum::<f64>();
+    let count = |k: usize| if pairs.is_empty() { nf - k as f64 } else { pairs[k] };
+    let q = nf * (nf + 2.0) * (1..=m).map(|k| (acf[k] / acf[0]).powi(2) / count(k)).sum::<f64>();
     chi2_sf(q, m)
 }
 
 /// p-value of the independence of `n` centred residuals from the input at lags 0..=m, from
 /// their cross-correlation with the centred input `reu` and their sum of squares `see`
-/// ([`residual_correlations`]); `ruu` is the input's autocorrelation at lags 0..=m.
-pub(super) fn independence_p(reu: &[f64], see: f64, n: usize, ruu: &[f64]) -> f64 {
+/// ([`residual_correlations`]); `ruu` is the input's autocorrelation at lags 0..=m, `less` the
+/// missing outputs' correction of its Toeplitz matrix ([`missing_rows_gram`]; empty: none).
+pub(super) fn independence_p(reu: &[f64], see: f64, n: usize, ruu: &[f64], less: &[f64]) -> f64 {
     let m = ruu.len() - 1;
     // r_k = (1/N) sum_t e_t u_{t-k} = (1/N) sum_s u_s e_{s+k}.
     let nf = n as f64;
@@ -84,7 +97,9 @@ pub(super) fn independence_p(reu: &[f64], see: f64, n: usize, ruu: &[f64]) -> f6
         return f64::NAN;
     }
     let k = m + 1;
-    let toeplitz = faer::Mat::<f64>::from_fn(k, k, |i, j| ruu[i.abs_diff(j)] / nf);
+    let toeplitz = faer::Mat::<f64>::from_fn(k, k, |i, j| {
+        if less.is_empty() { ruu[i.abs_diff(j)] / nf } else { (ruu[i.abs_diff(j)] - less[i * k + j]) / nf }
+    });
     let rhs = faer::Mat::<f64>::from_fn(k, 1, |i, _| reu[i] / nf);
     let Some(chol) = crate::dense::Llt::new(toeplitz.as_ref()) else { return f64::NAN };
     let x = chol.solve(rhs.as_ref());
@@ -97,13 +112,22 @@ pub(super) fn independence_p(reu: &[f64], see: f64, n: usize, ruu: &[f64]) -> f6
 /// with the input, `sum_t r_t u_{t-k} / sqrt(sum r^2 sum u^2)`, at lags 0..=MAX_LAG (means
 /// removed). Under the tests' null hypotheses each is within `2.58 / sqrt(N)` with
 /// probability 0.99 (for the cross-correlation, when the residuals are white). The lagged
-/// products stay within each experiment (`seams` as in [`Problem::seams`]), as the tests' own.
-pub fn correlation_functions(r: &[f64], u: &[f64], seams: &[usize]) -> (Vec<f64>, Vec<f64>) {
-    let m = MAX_LAG.min(r.len().saturating_sub(2));
-    let (e, u) = (centred(r), centred(u));
+/// products stay within each experiment (`seams` as in [`Problem::seams`]), as the tests' own,
+/// and with missing outputs (`missing`, as [`Problem::missing`]) over the observed residuals:
+/// every sum over t is over the observed samples, and N is their count.
+pub fn correlation_functions(r: &[f64], u: &[f64], seams: &[usize], missing: &[usize]) -> (Vec<f64>, Vec<f64>) {
+    let m = MAX_LAG.min((r.len() - missing.len().min(r.len())).saturating_sub(2));
+    let mut e = Vec::new();
+    centre_observed(r, missing, &mut e);
+    let u = centred(u);
     let (mut ree, mut ruu, mut reu) = (vec![0.0; m + 1], vec![0.0; 1], vec![0.0; m + 1]);
     residual_correlations(&e, &u, seams, &mut ree, &mut reu);
-    kernels::lagged_dots(&u, &u, &mut ruu);
+    if missing.is_empty() {
+        kernels::lagged_dots(&u, &u, &mut ruu);
+    } else {
+        // The input's power over the observed samples, the residuals' own.
+        ruu[0] = u.iter().map(|v| v * v).sum::<f64>() - missing.iter().map(|&t| u[t] * u[t]).sum::<f64>();
+    }
     let norm = (ree[0] * ruu[0]).sqrt();
     (ree.iter().map(|v| v / ree[0]).collect(), reu.iter().map(|v| v / norm).collect())
 }
@@ -111,6 +135,75 @@ pub fn correlation_functions(r: &[f64], u: &[f64], seams: &[usize]) -> (Vec<f64>
 fn centred(x: &[f64]) -> Vec<f64> {
     let mut out = Vec::new();
     centre_into(x, &mut out);
+    out
+}
+
+/// `out = x - mean(x)` over the samples not in `missing` (sorted), and 0 at those: a missing
+/// residual then adds nothing to any lagged product. A complete record: [`centre_into`].
+pub(super) fn centre_observed(x: &[f64], missing: &[usize], out: &mut Vec<f64>) {
+    if missing.is_empty() {
+        return centre_into(x, out);
+    }
+    out.clear();
+    out.extend_from_slice(x);
+    for &t in missing {
+        out[t] = 0.0;
+    }
+    let mean = out.iter().sum::<f64>() / (x.len() - missing.len()) as f64;
+    out.iter_mut().for_each(|v| *v -= mean);
+    for &t in missing {
+        out[t] = 0.0;
+    }
+}
+
+/// `C_ij = sum_{t in missing} v_t[i] v_t[j]` (i, j in 0..=m, row-major in `out`), `v_t[i] =
+/// u[t - i]` within t's experiment (0 before its start): what the missing samples' rows add to
+/// the input's Toeplitz autocorrelation, which [`independence_p`] takes out. Empty `out` for
+/// a complete record.
+pub(super) fn missing_rows_gram(u: &[f64], seams: &[usize], missing: &[usize], m: usize, out: &mut Vec<f64>) {
+    out.clear();
+    if missing.is_empty() {
+        return;
+    }
+    let k = m + 1;
+    out.resize(k * k, 0.0);
+    let mut v = vec![0.0; k];
+    for &t in missing {
+        let start = match seams.partition_point(|&s| s <= t) {
+            0 => 0,
+            i => seams[i - 1],
+        };
+        for (i, vi) in v.iter_mut().enumerate() {
+            *vi = if t >= start + i { u[t - i] } else { 0.0 };
+        }
+        for i in 0..k {
+            for j in 0..k {
+                out[i * k + j] += v[i] * v[j];
+            }
+        }
+    }
+}
+
+/// `n_k`, k in 0..=m: the pairs (s, s + k) within one experiment whose outputs are both
+/// observed (`missing` sorted), by inclusion and exclusion over the missing samples. Empty for
+/// a complete record (the tests then take Ljung-Box's `N - k`).
+pub(super) fn observed_pairs(n: usize, seams: &[usize], missing: &[usize], m: usize) -> Vec<f64> {
+    if missing.is_empty() {
+        return Vec::new();
+    }
+    let mut out = vec![0.0; m + 1];
+    for e in crate::data::experiment_ranges(n, seams) {
+        let miss = &missing[missing.partition_point(|&t| t < e.start)..missing.partition_point(|&t| t < e.end)];
+        for (k, o) in out.iter_mut().enumerate() {
+            if e.len() <= k {
+                continue;
+            }
+            let first = miss.iter().filter(|&&t| t + k < e.end).count();
+            let second = miss.iter().filter(|&&t| t >= e.start + k).count();
+            let both = miss.iter().filter(|&&t| t + k < e.end && miss.binary_search(&(t + k)).is_ok()).count();
+            *o += (e.len() - k + both - first - second) as f64;
+        }
+    }
     out
 }
 
@@ -144,7 +237,7 @@ mod tests {
         let r: Vec<f64> =
             (0..n).map(|t| if t == 0 { 0.0 } else { u[t - 1] } + ((t * 11 % 7) as f64 - 3.0) * 0.01).collect();
         let seams = [300, 650];
-        let (acf, ccf) = correlation_functions(&r, &u, &seams);
+        let (acf, ccf) = correlation_functions(&r, &u, &seams, &[]);
         let centred = |x: &[f64]| {
             let m = x.iter().sum::<f64>() / x.len() as f64;
             x.iter().map(|v| v - m).collect::<Vec<f64>>()
@@ -163,7 +256,7 @@ mod tests {
             assert!((ccf[lag] - want_ccf).abs() <= 1e-12, "ccf lag {lag}: {} vs {want_ccf}", ccf[lag]);
         }
         // Across the seams the answer differs: the test above can tell the two apart.
-        let (_, ccf_joined) = correlation_functions(&r, &u, &[]);
+        let (_, ccf_joined) = correlation_functions(&r, &u, &[], &[]);
         assert!((ccf_joined[1] - ccf[1]).abs() > 1e-6);
     }
 
@@ -186,7 +279,7 @@ mod tests {
             let (mut ree, mut reu, mut ruu) = (vec![0.0; MAX_LAG + 1], vec![0.0; MAX_LAG + 1], vec![0.0; MAX_LAG + 1]);
             residual_correlations(&x, &u, &[], &mut ree, &mut reu);
             kernels::lagged_dots(&u, &u, &mut ruu);
-            (whiteness_p(&ree, x.len()), independence_p(&reu, ree[0], x.len(), &ruu))
+            (whiteness_p(&ree, x.len(), &[]), independence_p(&reu, ree[0], x.len(), &ruu, &[]))
         };
         let (white, indep) = tests(&e, &u);
         assert!(white > 0.001, "{white}");

@@ -201,6 +201,38 @@ pub fn padded_range(values: impl IntoIterator<Item = f64>, pad: f64) -> Option<(
     Some((lo - pad * span, hi + pad * span))
 }
 
+/// The points split where a value is not finite (a missing output's NaN): one line per run,
+/// so that no line is drawn through a gap.
+pub fn finite_runs(points: impl IntoIterator<Item = (f64, f64)>) -> Vec<Vec<(f64, f64)>> {
+    let mut runs: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+    for (x, y) in points {
+        if y.is_finite() {
+            runs.last_mut().expect("never empty").push((x, y));
+        } else if !runs.last().expect("never empty").is_empty() {
+            runs.push(Vec::new());
+        }
+    }
+    runs.retain(|r| !r.is_empty());
+    runs
+}
+
+/// The runs of consecutive samples of `missing` (sorted) below `end`, as `start..end` ranges:
+/// the bands a figure shades where the output is missing.
+pub fn missing_spans(missing: &[usize], end: usize) -> Vec<std::ops::Range<usize>> {
+    let mut spans: Vec<std::ops::Range<usize>> = Vec::new();
+    for &t in missing.iter().take_while(|&&t| t < end) {
+        match spans.last_mut() {
+            Some(s) if s.end == t => s.end = t + 1,
+            _ => spans.push(t..t + 1),
+        }
+    }
+    spans
+}
+
+/// Shading for missing outputs, and the colour of a cut between segments (a seam).
+pub const GAP_COLOUR: RGBColor = RGBColor(200, 160, 220);
+pub const SEAM_COLOUR: RGBColor = RGBColor(90, 90, 90);
+
 /// The `q`-quantile (0..=1) of the finite values (linear interpolation), None when there are none.
 pub fn quantile(values: &[f64], q: f64) -> Option<f64> {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();

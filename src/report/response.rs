@@ -45,7 +45,14 @@ pub(super) fn bode_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -
             }
         }
     } else {
-        match crate::spectral::estimate_within(&s.est.u, &s.est.y, &s.est.seams, s.ts(), s.job.job.spectrum) {
+        match crate::spectral::estimate_within(
+            &s.est.u,
+            &s.est.y,
+            &s.est.seams,
+            &s.est.missing,
+            s.ts(),
+            s.job.job.spectrum,
+        ) {
             Ok(est) => {
                 for p in &picks {
                     let file = format!("{FIGURE_PREFIX}bode-{}.svg", p.name.to_lowercase());
@@ -96,20 +103,27 @@ pub(super) fn residual_sections(s: &Review, pick: Option<Picked>) -> Result<[Sec
                 let file = "report-residuals.svg";
                 let zero = InitialState::Zero;
                 let (y_ls, y_h) = (s.output_of_row(ls, &s.est, zero), s.output_of_row(p.model, &s.est, zero));
-                res_figs.push(figure(folder, file, figures::residual_figure(&s.est.y, (ls, &y_ls), (p, &y_h), file))?);
+                res_figs.push(figure(folder, file, figures::residual_figure(&s.est, (ls, &y_ls), (p, &y_h), file))?);
+                // Where the record has gaps or cuts: the residuals over time, with them.
+                if !(s.est.missing.is_empty() && s.est.seams.is_empty()) {
+                    let file = format!("{FIGURE_PREFIX}residuals-time.svg");
+                    res_figs.push(figure(folder, &file, figures::gaps_figure(&s.est, s.ts(), (p, &y_h), &file))?);
+                }
                 // The residual tests' correlation functions, on psi_g(e) and the input less u0.
                 let loss = crate::estimate::Loss::Huber { gamma: p.model.gamma() };
                 let r: Vec<f64> = s.est.y.iter().zip(&y_h).map(|(y, yh)| loss.psi(y - yh)).collect();
                 let ps = (p.model.evidence.resid_white_p, p.model.evidence.resid_indep_p);
                 for i in 0..s.job.m {
                     let u: Vec<f64> = s.est.input(i).iter().map(|v| v - s.u0s[i]).collect();
-                    let (acf, ccf) = crate::estimate::residual_tests::correlation_functions(&r, &u, &s.est.seams);
+                    let (acf, ccf) =
+                        crate::estimate::residual_tests::correlation_functions(&r, &u, &s.est.seams, &s.est.missing);
                     let (file, scope) = if s.job.m == 1 {
                         ("report-resid-corr.svg".to_string(), String::new())
                     } else {
                         (format!("{FIGURE_PREFIX}resid-corr-u{}.svg", i + 1), format!(", input {}", s.input_name(i)))
                     };
-                    let drawn = figures::resid_corr_figure(&acf, &ccf, r.len(), ps, p, &scope, &file);
+                    let drawn =
+                        figures::resid_corr_figure(&acf, &ccf, r.len() - s.est.missing.len(), ps, p, &scope, &file);
                     res_figs.push(figure(folder, &file, drawn)?);
                 }
                 let records = [("estimation", Some(&s.est)), ("validation", s.val.as_ref())];
@@ -123,7 +137,7 @@ pub(super) fn residual_sections(s: &Review, pick: Option<Picked>) -> Result<[Sec
                         out_figs.push(figure(
                             folder,
                             &file,
-                            figures::output_figure(&rec.y, s.ts(), name, (ls, &y_ls), (p, &y_h), OUTPUT_WINDOW, &file),
+                            figures::output_figure(rec, s.ts(), name, (ls, &y_ls), (p, &y_h), OUTPUT_WINDOW, &file),
                         )?);
                     }
                 }

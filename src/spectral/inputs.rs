@@ -28,8 +28,8 @@
 //! The band fit of a several-input model is one fit % per input (input i's `B_i/F_i` with
 //! delay d_i against `H_i`, [`super::band_fit`]) and their mean ([`combined_band_fit`]).
 
-use super::{Fft, detrend_window, estimate_within, segmentation, welch_within};
-use super::{MIN_SAMPLES, SUU_REL_FLOOR, SpectralEstimate, SpectrumMethod, WelchOptions, clean};
+use super::{Fft, cleaned_stretches, detrend_window, estimate_within, gaps, segmentation, welch_within};
+use super::{MIN_SAMPLES, SUU_REL_FLOOR, SpectralEstimate, SpectrumMethod, WelchOptions};
 use crate::error::{Error, Result};
 use std::f64::consts::PI;
 use std::ops::{Add, AddAssign, Mul, Sub};
@@ -37,32 +37,29 @@ use std::ops::{Add, AddAssign, Mul, Sub};
 /// [`super::estimate_within`] of a record of `m` inputs (`u`: the m columns one after the
 /// other, as [`crate::data::Record::u`]): one estimate per input, `H_i`, the bins, coherence
 /// and segments common to all. One input: exactly [`super::estimate_within`]'s estimate. The
-/// robust method cleans the output with a predictor of every input ([`clean::clean`]).
+/// robust method cleans the output with a predictor of every input ([`super::clean::clean`]). With
+/// missing outputs (`missing`, [`crate::data::Record::missing`]) the segments lie in the
+/// stretches of observed outputs (METHOD.md 21.3).
 pub fn estimate_inputs(
     u: &[f64],
     m: usize,
     y: &[f64],
     seams: &[usize],
+    missing: &[usize],
     ts: f64,
     method: SpectrumMethod,
 ) -> Result<Vec<SpectralEstimate>> {
     if m == 1 {
-        return Ok(vec![estimate_within(u, y, seams, ts, method)?]);
+        return Ok(vec![estimate_within(u, y, seams, missing, ts, method)?]);
     }
     let opts = WelchOptions::default();
     let n = y.len();
     // Checked before cleaning so that its messages are Welch's.
     if method == SpectrumMethod::Welch || u.len() != m * n || n < MIN_SAMPLES {
-        return welch_inputs(u, m, y, seams, ts, &opts);
+        return welch_inputs(u, m, y, seams, missing, ts, &opts);
     }
-    let (mut all, mut replaced) = (Vec::with_capacity(n), 0);
-    for e in crate::data::experiment_ranges(n, seams) {
-        let columns: Vec<f64> = u.chunks_exact(n).flat_map(|c| c[e.clone()].iter().copied()).collect();
-        let cleaned = clean::clean(&columns, &y[e], &clean::CleanOptions::default());
-        all.extend_from_slice(&cleaned.y);
-        replaced += cleaned.replaced;
-    }
-    let mut ests = welch_inputs(u, m, &all, seams, ts, &opts)?;
+    let (all, replaced) = cleaned_stretches(u, y, seams, missing);
+    let mut ests = welch_inputs(u, m, &all, seams, missing, ts, &opts)?;
     for est in &mut ests {
         est.replaced = replaced;
     }
@@ -80,6 +77,7 @@ pub fn welch_inputs(
     m: usize,
     y: &[f64],
     seams: &[usize],
+    missing: &[usize],
     ts: f64,
     opts: &WelchOptions,
 ) -> Result<Vec<SpectralEstimate>> {
@@ -91,9 +89,9 @@ pub fn welch_inputs(
         )));
     }
     if m == 1 {
-        return Ok(vec![welch_within(u, y, seams, ts, opts)?]);
+        return Ok(vec![welch_within(u, y, seams, missing, ts, opts)?]);
     }
-    let (seg, starts) = segmentation(u, y, seams, ts, opts)?;
+    let (seg, starts) = segmentation(u, y, seams, missing, ts, opts)?;
     let segments = starts.len();
     let bins = seg / 2 + 1;
     let fft = Fft::new(seg);
@@ -148,6 +146,7 @@ pub fn welch_inputs(
         }
     }
     let freq_hz: Vec<f64> = (0..bins).map(|k| k as f64 / (seg as f64 * ts)).collect();
+    let used = gaps::covered(&starts, seg);
     Ok(re
         .into_iter()
         .zip(im)
@@ -161,6 +160,7 @@ pub fn welch_inputs(
             ts,
             segments,
             replaced: 0,
+            used,
             gain_error,
         })
         .collect())
@@ -313,7 +313,7 @@ mod tests {
             simulate_vec(&b1, &f1, d1, &u1).iter().zip(simulate_vec(&b2, &f2, d2, &u2)).map(|(a, b)| a + b).collect();
         let u: Vec<f64> = u1.iter().chain(&u2).copied().collect();
         for method in [SpectrumMethod::Welch, SpectrumMethod::Robust] {
-            let ests = estimate_inputs(&u, 2, &y, &[], 1.0, method).unwrap();
+            let ests = estimate_inputs(&u, 2, &y, &[], &[], 1.0, method).unwrap();
             assert_eq!(ests.len(), 2);
             let bins = ests[0].band(0.0, 0.25);
             assert_eq!(bins, ests[1].band(0.0, 0.25), "the same bins for every input");
@@ -351,7 +351,7 @@ mod tests {
             .map(|((a, b), e)| a + b + 0.7 * e)
             .collect();
         let u: Vec<f64> = u1.iter().chain(&u2).copied().collect();
-        let ests = welch_inputs(&u, 2, &y, &[], 1.0, &WelchOptions::default()).unwrap();
+        let ests = welch_inputs(&u, 2, &y, &[], &[], 1.0, &WelchOptions::default()).unwrap();
         let bins = ests[0].band(0.0, 0.5);
         for (est, (b, f, d)) in ests.iter().zip([(&b1[..], &f1[..], 0), (&b2[..], &f2[..], 1)]) {
             // |H| - |G| over its predicted std e |G| (e the normalised gain error).
@@ -379,9 +379,9 @@ mod tests {
         let n = 4096;
         let u1 = white(n, 6);
         let u: Vec<f64> = u1.iter().chain(u1.iter().map(|v| 2.0 * v).collect::<Vec<_>>().iter()).copied().collect();
-        let ests = welch_inputs(&u, 2, &u1, &[], 1.0, &WelchOptions::default()).unwrap();
+        let ests = welch_inputs(&u, 2, &u1, &[], &[], 1.0, &WelchOptions::default()).unwrap();
         assert!(ests.iter().all(|e| e.band(0.0, 0.5).is_empty()));
-        let err = welch_inputs(&u[1..], 2, &u1, &[], 1.0, &WelchOptions::default()).unwrap_err();
+        let err = welch_inputs(&u[1..], 2, &u1, &[], &[], 1.0, &WelchOptions::default()).unwrap_err();
         assert!(err.to_string().contains("for 2 inputs"), "{err}");
     }
 
@@ -389,8 +389,8 @@ mod tests {
     fn one_input_is_the_one_input_estimate() {
         let u = white(4096, 7);
         let y: Vec<f64> = simulate_vec(&[0.5], &[-0.7], 1, &u);
-        let one = estimate_within(&u, &y, &[], 1.0, SpectrumMethod::Robust).unwrap();
-        let ests = estimate_inputs(&u, 1, &y, &[], 1.0, SpectrumMethod::Robust).unwrap();
+        let one = estimate_within(&u, &y, &[], &[], 1.0, SpectrumMethod::Robust).unwrap();
+        let ests = estimate_inputs(&u, 1, &y, &[], &[], 1.0, SpectrumMethod::Robust).unwrap();
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(ests.len(), 1);
         assert_eq!((bits(&ests[0].re), bits(&ests[0].im)), (bits(&one.re), bits(&one.im)));

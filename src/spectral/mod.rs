@@ -40,7 +40,11 @@
 //! better than `G_model = 0`, and it is negative for worse models (like the time-domain `fit`).
 
 pub mod clean;
+mod fft;
+mod gaps;
 mod inputs;
+
+use fft::{Fft, detrend_window};
 
 pub use inputs::{combined_band_fit, estimate_inputs, welch_inputs};
 
@@ -63,45 +67,57 @@ crate::names::names!(SpectrumMethod { Robust = "robust", Welch = "welch" });
 /// The spectral estimate of a record by `method` (default Welch settings): the one entry
 /// point for the sweep, `oesweep fit`, `oesweep spectrum` and the report.
 pub fn estimate(u: &[f64], y: &[f64], ts: f64, method: SpectrumMethod) -> Result<SpectralEstimate> {
-    estimate_within(u, y, &[], ts, method)
+    estimate_within(u, y, &[], &[], ts, method)
 }
 
 /// [`estimate`] of a record of several experiments separated by `seams`
-/// ([`crate::data::Record::seams`]; empty: one): each experiment cleaned on its own, and the
-/// Welch spectra summed over the segments of every experiment, none across a seam (METHOD.md
-/// 16), so an experiment weighs by its length.
+/// ([`crate::data::Record::seams`]; empty: one) and with the outputs at `missing` missing
+/// ([`crate::data::Record::missing`]; NaN in `y`): each stretch of observed outputs (an
+/// experiment, or a part of one between gaps) cleaned on its own, and the Welch spectra summed
+/// over the segments of every stretch, none across a seam (METHOD.md 16) or a gap (21.3).
 pub fn estimate_within(
     u: &[f64],
     y: &[f64],
     seams: &[usize],
+    missing: &[usize],
     ts: f64,
     method: SpectrumMethod,
 ) -> Result<SpectralEstimate> {
     let opts = WelchOptions::default();
     match method {
-        SpectrumMethod::Welch => welch_within(u, y, seams, ts, &opts),
+        SpectrumMethod::Welch => welch_within(u, y, seams, missing, ts, &opts),
         SpectrumMethod::Robust => {
             // Checked before cleaning so that its messages are Welch's.
             if u.len() != y.len() || u.len() < MIN_SAMPLES {
-                return welch_within(u, y, seams, ts, &opts);
+                return welch_within(u, y, seams, missing, ts, &opts);
             }
-            if seams.is_empty() {
+            if seams.is_empty() && missing.is_empty() {
                 let cleaned = clean::clean(u, y, &clean::CleanOptions::default());
                 let mut est = welch(u, &cleaned.y, ts, &opts)?;
                 est.replaced = cleaned.replaced;
                 return Ok(est);
             }
-            let (mut all, mut replaced) = (Vec::with_capacity(y.len()), 0);
-            for e in crate::data::experiment_ranges(u.len(), seams) {
-                let cleaned = clean::clean(&u[e.clone()], &y[e], &clean::CleanOptions::default());
-                all.extend_from_slice(&cleaned.y);
-                replaced += cleaned.replaced;
-            }
-            let mut est = welch_within(u, &all, seams, ts, &opts)?;
+            let (all, replaced) = cleaned_stretches(u, y, seams, missing);
+            let mut est = welch_within(u, &all, seams, missing, ts, &opts)?;
             est.replaced = replaced;
             Ok(est)
         }
     }
+}
+
+/// The output with each stretch of observed outputs cleaned on its own ([`clean::clean`] with
+/// every input column of `u`, one after the other), a missing output left NaN, and the count of
+/// samples replaced.
+fn cleaned_stretches(u: &[f64], y: &[f64], seams: &[usize], missing: &[usize]) -> (Vec<f64>, usize) {
+    let n = y.len();
+    let (mut all, mut replaced) = (y.to_vec(), 0);
+    for e in crate::data::observed_ranges(n, seams, missing) {
+        let columns: Vec<f64> = u.chunks_exact(n).flat_map(|c| c[e.clone()].iter().copied()).collect();
+        let cleaned = clean::clean(&columns, &y[e.clone()], &clean::CleanOptions::default());
+        all[e].copy_from_slice(&cleaned.y);
+        replaced += cleaned.replaced;
+    }
+    (all, replaced)
 }
 
 /// Shortest record accepted by [`welch`]: two segments of the smallest length.
@@ -131,6 +147,9 @@ pub struct SpectralEstimate {
     pub segments: usize,
     /// Output samples replaced by the cleaning of [`SpectrumMethod::Robust`] (0 for plain Welch).
     pub replaced: usize,
+    /// Samples inside at least one segment: with missing outputs, the observed samples the
+    /// estimate rests on (the stretches too short for a segment, and every tail, are unused).
+    pub used: usize,
     /// One input of several ([`welch_inputs`]): the normalised random error of `|G_spec|` per
     /// bin (NaN where the inputs have no power), which [`SpectralEstimate::magnitude_band`]
     /// takes instead of the one-input formula. Empty for one input.
@@ -161,18 +180,26 @@ impl Default for WelchOptions {
 /// [`Error::Invalid`] when `u` and `y` differ in length, `N < 32`, `ts` is not a positive finite
 /// number, `overlap` is outside `[0, 1)`, or a sample is not finite.
 pub fn welch(u: &[f64], y: &[f64], ts: f64, opts: &WelchOptions) -> Result<SpectralEstimate> {
-    welch_within(u, y, &[], ts, opts)
+    welch_within(u, y, &[], &[], ts, opts)
 }
 
 /// [`welch`] over the experiments of a record separated by `seams` (empty: one): the segment
 /// length is set by the shortest experiment, and the segments of every experiment are summed
-/// (none crosses a seam).
-pub fn welch_within(u: &[f64], y: &[f64], seams: &[usize], ts: f64, opts: &WelchOptions) -> Result<SpectralEstimate> {
+/// (none crosses a seam). With missing outputs (`missing`, sorted; NaN in `y`) the segments lie
+/// in the stretches of observed outputs and their length is chosen from those ([`gaps`]).
+pub fn welch_within(
+    u: &[f64],
+    y: &[f64],
+    seams: &[usize],
+    missing: &[usize],
+    ts: f64,
+    opts: &WelchOptions,
+) -> Result<SpectralEstimate> {
     let n = u.len();
     if y.len() != n {
         return Err(Error::Invalid(format!("spectral estimate: input has {n} samples but output has {}", y.len())));
     }
-    let (m, starts) = segmentation(u, y, seams, ts, opts)?;
+    let (m, starts) = segmentation(u, y, seams, missing, ts, opts)?;
     let segments = starts.len();
     let bins = m / 2 + 1;
 
@@ -215,7 +242,19 @@ pub fn welch_within(u: &[f64], y: &[f64], seams: &[usize], ts: f64, opts: &Welch
         }
     }
     let freq_hz = (0..bins).map(|k| k as f64 / (m as f64 * ts)).collect();
-    Ok(SpectralEstimate { freq_hz, re, im, coherence, segment: m, ts, segments, replaced: 0, gain_error: Vec::new() })
+    let used = gaps::covered(&starts, m);
+    Ok(SpectralEstimate {
+        freq_hz,
+        re,
+        im,
+        coherence,
+        segment: m,
+        ts,
+        segments,
+        replaced: 0,
+        used,
+        gain_error: Vec::new(),
+    })
 }
 
 impl SpectralEstimate {
@@ -291,9 +330,16 @@ pub fn band_fit(est: &SpectralEstimate, bins: &[usize], b: &[f64], f: &[f64], de
 }
 
 /// The segment length and the segments' starts of the record `u` (any number of input
-/// columns, one after the other), `y` cut at `seams` (see [`welch_within`]), after checking its
-/// length, samples, `ts` and the overlap.
-fn segmentation(u: &[f64], y: &[f64], seams: &[usize], ts: f64, opts: &WelchOptions) -> Result<(usize, Vec<usize>)> {
+/// columns, one after the other), `y` cut at `seams` and at the missing outputs `missing` (see
+/// [`welch_within`]), after checking its length, samples, `ts` and the overlap.
+fn segmentation(
+    u: &[f64],
+    y: &[f64],
+    seams: &[usize],
+    missing: &[usize],
+    ts: f64,
+    opts: &WelchOptions,
+) -> Result<(usize, Vec<usize>)> {
     let n = y.len();
     if n < MIN_SAMPLES {
         return Err(Error::Invalid(format!("spectral estimate: {n} samples, need at least {MIN_SAMPLES}")));
@@ -305,8 +351,15 @@ fn segmentation(u: &[f64], y: &[f64], seams: &[usize], ts: f64, opts: &WelchOpti
         return Err(Error::Invalid(format!("spectral estimate: overlap must be in [0, 1), got {}", opts.overlap)));
     }
     let inputs = u.len() / n;
-    if let Some(t) = (0..n).find(|&t| !(y[t].is_finite() && (0..inputs).all(|i| u[i * n + t].is_finite()))) {
+    // A missing output is NaN by design (and no segment holds it).
+    let observed = |t: usize| missing.binary_search(&t).is_err();
+    if let Some(t) =
+        (0..n).find(|&t| !((y[t].is_finite() || !observed(t)) && (0..inputs).all(|i| u[i * n + t].is_finite())))
+    {
         return Err(Error::Invalid(format!("spectral estimate: non-finite sample at index {t}")));
+    }
+    if !missing.is_empty() {
+        return gaps::segments(n, seams, missing, opts);
     }
     let experiments = crate::data::experiment_ranges(n, seams);
     let shortest = experiments.iter().map(|e| e.len()).min().unwrap_or(n);
@@ -330,70 +383,6 @@ fn segment_length(requested: usize, n: usize) -> usize {
     1usize << (usize::BITS - 1 - cap.leading_zeros())
 }
 
-/// `out = w (x - mean(x))`, imaginary part zeroed: the FFT input of one segment.
-fn detrend_window(x: &[f64], w: &[f64], out_re: &mut [f64], out_im: &mut [f64]) {
-    let mean = x.iter().sum::<f64>() / x.len() as f64;
-    for ((o, &xi), &wi) in out_re.iter_mut().zip(x).zip(w) {
-        *o = wi * (xi - mean);
-    }
-    out_im.fill(0.0);
-}
-
-/// In-place iterative radix-2 complex FFT, `X_k = sum_n x_n e^{-j 2 pi k n / M}`, with the
-/// twiddle factors and bit-reversal table precomputed once per segment length.
-struct Fft {
-    n: usize,
-    /// `e^{-j 2 pi k / n}` for `k < n/2`.
-    tw_re: Vec<f64>,
-    tw_im: Vec<f64>,
-    /// Bit-reversed index of each position.
-    rev: Vec<usize>,
-}
-
-impl Fft {
-    fn new(n: usize) -> Self {
-        assert!(n.is_power_of_two() && n >= 2, "FFT length {n} is not a power of two >= 2");
-        let bits = n.trailing_zeros();
-        let (tw_re, tw_im) = (0..n / 2)
-            .map(|k| {
-                let a = -2.0 * PI * k as f64 / n as f64;
-                (a.cos(), a.sin())
-            })
-            .unzip();
-        let rev = (0..n).map(|i| i.reverse_bits() >> (usize::BITS - bits)).collect();
-        Fft { n, tw_re, tw_im, rev }
-    }
-
-    fn forward(&self, re: &mut [f64], im: &mut [f64]) {
-        assert!(re.len() == self.n && im.len() == self.n);
-        for i in 0..self.n {
-            let j = self.rev[i];
-            if i < j {
-                re.swap(i, j);
-                im.swap(i, j);
-            }
-        }
-        let mut len = 2;
-        while len <= self.n {
-            let half = len / 2;
-            let stride = self.n / len;
-            for start in (0..self.n).step_by(len) {
-                for k in 0..half {
-                    let (wr, wi) = (self.tw_re[k * stride], self.tw_im[k * stride]);
-                    let (a, b) = (start + k, start + k + half);
-                    let tr = re[b] * wr - im[b] * wi;
-                    let ti = re[b] * wi + im[b] * wr;
-                    re[b] = re[a] - tr;
-                    im[b] = im[a] - ti;
-                    re[a] += tr;
-                    im[a] += ti;
-                }
-            }
-            len *= 2;
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -408,24 +397,6 @@ mod tests {
                 if s >> 63 == 1 { 1.0 } else { -1.0 }
             })
             .collect()
-    }
-
-    #[test]
-    fn fft_matches_naive_dft() {
-        let n = 64;
-        let x = pm1(n, 7);
-        let xi: Vec<f64> = pm1(n, 11).iter().map(|v| 0.5 * v).collect();
-        let (mut re, mut im) = (x.clone(), xi.clone());
-        Fft::new(n).forward(&mut re, &mut im);
-        for k in 0..n {
-            let (mut sr, mut si) = (0.0, 0.0);
-            for t in 0..n {
-                let a = -2.0 * PI * (k * t) as f64 / n as f64;
-                sr += x[t] * a.cos() - xi[t] * a.sin();
-                si += x[t] * a.sin() + xi[t] * a.cos();
-            }
-            assert!((re[k] - sr).abs() < 1e-10 && (im[k] - si).abs() < 1e-10, "bin {k}");
-        }
     }
 
     #[test]

@@ -31,7 +31,8 @@ pub fn judged_by_residuals(radius: f64) -> bool {
 
 /// The KPSS statistic of the model `theta`'s residuals on the record `prob` as tested (its
 /// head of [`MAX_ROWS`]), the initial state of each experiment fitted (the transient of a slow
-/// model started from rest is no drift): see [`drift_statistic`].
+/// model started from rest is no drift): see [`drift_statistic`]. With missing outputs, of the
+/// observed residuals one after the other within each experiment (METHOD.md 21.3).
 pub fn residual_drift(prob: &Problem, theta: &[f64]) -> f64 {
     let rows = prob.n().min(MAX_ROWS);
     // Several inputs' heads are copied (their columns are not contiguous in a head).
@@ -41,13 +42,26 @@ pub fn residual_drift(prob: &Problem, theta: &[f64]) -> f64 {
     } else {
         heads = (0..prob.m()).flat_map(|i| prob.input(i)[..rows].iter().copied()).collect();
         let seams = &prob.seams[..prob.seams.partition_point(|&s| s < rows)];
-        Problem { u: &heads, y: &prob.y[..rows], seams, ..*prob }
+        let missing = &prob.missing[..prob.missing.partition_point(|&t| t < rows)];
+        Problem { u: &heads, y: &prob.y[..rows], seams, missing, ..*prob }
     };
     let mut r = prob.simulate_vec(theta);
     let judge = Judge { initial_state: InitialState::Estimate, ..Judge::default() };
     judge.judge_output(&prob, theta, prob.y, &mut r, &mut Scratch::default());
     r.iter_mut().zip(prob.y).for_each(|(r, y)| *r = y - *r);
-    drift_statistic(&r, prob.seams)
+    if prob.missing.is_empty() {
+        return drift_statistic(&r, prob.seams);
+    }
+    let (mut observed, mut seams, mut experiment) = (Vec::with_capacity(prob.n_obs()), Vec::new(), None);
+    for x in crate::data::observed_ranges(prob.n(), prob.seams, prob.missing) {
+        let start = prob.experiment_start(x.start);
+        if experiment.is_some_and(|e| e != start) {
+            seams.push(observed.len());
+        }
+        experiment = Some(start);
+        observed.extend_from_slice(&r[x]);
+    }
+    drift_statistic(&observed, &seams)
 }
 
 /// The KPSS statistic of `r` about a level in each experiment (METHOD.md 7.3):

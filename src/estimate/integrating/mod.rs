@@ -49,6 +49,12 @@
 //! names what was seen, the drift of those residuals, whose cause may be a slow disturbance or
 //! an integrating plant (a stable model of an integrator leaves a drift too).
 //!
+//! Missing outputs (METHOD.md 21.3; NaN in `y`): the rows and the filters need an unbroken
+//! output history, so the test runs on the stretches of observed outputs as experiments of
+//! their own (the record compacted, [`Stretches`]), each with its pulses and its constant; a
+//! stretch shorter than [`MIN_STRETCH`] is left out (its rows would hardly outnumber its
+//! nuisance columns). The judgement's drift statistic is over the observed residuals.
+//!
 //! What no test can do: a stable pole whose time constant is as long as the record or longer
 //! gives data that an integrator explains as well; there the test may fire and the fits lie on
 //! the boundary (METHOD.md 7.3 measures where).
@@ -82,6 +88,39 @@ const ROUNDING: f64 = 1e-10;
 /// Below this |imaginary part| relative to the modulus a pole is real.
 const REAL: f64 = 1e-9;
 
+/// The shortest stretch of observed outputs the test of a record with missing outputs uses.
+pub const MIN_STRETCH: usize = 32;
+
+/// The stretches of observed outputs of a record's head the test runs on, as experiments of a
+/// compacted record: `ranges` in the record, `seams` where stretches 2.. begin in the compacted
+/// one. A complete record is its experiments as they are.
+struct Stretches {
+    ranges: Vec<std::ops::Range<usize>>,
+    seams: Vec<usize>,
+}
+
+impl Stretches {
+    /// The stretches of `y` (a missing output is NaN) with experiments beginning at `seams`.
+    fn of(y: &[f64], seams: &[usize]) -> Stretches {
+        let missing: Vec<usize> = (0..y.len()).filter(|&t| y[t].is_nan()).collect();
+        let ranges: Vec<_> = if missing.is_empty() {
+            crate::data::experiment_ranges(y.len(), seams)
+        } else {
+            crate::data::observed_ranges(y.len(), seams, &missing)
+                .into_iter()
+                .filter(|r| r.len() >= MIN_STRETCH)
+                .collect()
+        };
+        let seams = ranges.iter().scan(0, |at, r| Some(std::mem::replace(at, *at + r.len()))).skip(1).collect();
+        Stretches { ranges, seams }
+    }
+
+    /// The samples of `x` (one column of the record) in the stretches, one after the other.
+    fn take(&self, x: &[f64]) -> Vec<f64> {
+        self.ranges.iter().flat_map(|r| x[r.clone()].iter().copied()).collect()
+    }
+}
+
 /// The outcome of the test on one record.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PoleTest {
@@ -113,8 +152,9 @@ pub fn pole_test(u: &[f64], y: &[f64], seams: &[usize], delay: usize) -> Option<
     // more than a whole sweep of a 1e6-sample record.
     let head = u.len().min(MAX_ROWS);
     let (u, y) = (&u[..head], &y[..head]);
-    let seams = head_seams(seams, head);
-    let (prob, fit) = fitted(u, y, &seams, delay)?;
+    let stretches = Stretches::of(y, &head_seams(seams, head));
+    let (u, y) = (stretches.take(u), stretches.take(y));
+    let (prob, fit) = fitted(&u, &y, &stretches.seams, delay)?;
     test_poles(&prob, &fit)
 }
 
@@ -142,6 +182,11 @@ pub fn pole_tests(u: &[f64], m: usize, y: &[f64], seams: &[usize], delays: &[usi
     let seams = head_seams(seams, head);
     let input = |i: usize| &u[i * n..i * n + head];
     let y = &y[..head];
+    // Each input's fit on the stretches of observed outputs; the other inputs' outputs x_j
+    // simulated over the whole head (the inputs are complete), then taken to the stretches.
+    let stretches = Stretches::of(y, &seams);
+    let inputs: Vec<Vec<f64>> = (0..m).map(|i| stretches.take(input(i))).collect();
+    let mut taken = vec![Vec::new(); m];
     // Each input's noise-free output x_i, and the output its last fit saw (y less the others').
     let mut parts = vec![vec![0.0; head]; m];
     let mut seen = vec![vec![0.0; head]; m];
@@ -151,9 +196,10 @@ pub fn pole_tests(u: &[f64], m: usize, y: &[f64], seams: &[usize], delays: &[usi
             for (t, v) in seen[i].iter_mut().enumerate() {
                 *v = y[t] - (0..m).filter(|&j| j != i).map(|j| parts[j][t]).sum::<f64>();
             }
-            fits[i] = fitted(input(i), &seen[i], &seams, delays[i]).map(|(prob, fit)| {
-                let plain = Problem { offset: false, ..prob };
-                plain.simulate(&fit.model, &mut parts[i]);
+            taken[i] = stretches.take(&seen[i]);
+            fits[i] = fitted(&inputs[i], &taken[i], &stretches.seams, delays[i]).map(|(prob, fit)| {
+                let whole = Problem { u: input(i), y, offset: false, seams: &seams, ..prob };
+                whole.simulate(&fit.model, &mut parts[i]);
                 (prob.structure, fit)
             });
             if fits[i].is_none() {
@@ -165,8 +211,14 @@ pub fn pole_tests(u: &[f64], m: usize, y: &[f64], seams: &[usize], delays: &[usi
         .enumerate()
         .map(|(i, fit)| {
             let (structure, fit) = fit.as_ref()?;
-            let prob =
-                Problem { u: input(i), y: &seen[i], structure: *structure, offset: true, seams: &seams, missing: &[] };
+            let prob = Problem {
+                u: &inputs[i],
+                y: &taken[i],
+                structure: *structure,
+                offset: true,
+                seams: &stretches.seams,
+                missing: &[],
+            };
             test_poles(&prob, fit)
         })
         .collect()

@@ -2,6 +2,7 @@
 
 use super::super::plot::*;
 use super::{Figure, Picked};
+use crate::data::Record;
 use crate::table::CellRow;
 use plotters::prelude::*;
 use std::f64::consts::PI;
@@ -25,15 +26,18 @@ fn histogram(e: &[f64], reach: f64, bins: usize) -> (Vec<usize>, usize) {
 /// Residuals of the least-squares fit and of a Huber pick (same orders) on the estimation
 /// record, as histograms with ±gamma marked (paper Fig. 9).
 /// `y_ls` and `y_h` are the two models' outputs from zero initial conditions (the residuals
-/// of the criterion).
+/// of the criterion); a missing output (`rec.missing`) has no residual and is left out.
 pub fn residual_figure(
-    y: &[f64],
+    rec: &Record,
     (ls, y_ls): (&CellRow, &[f64]),
     (pick, y_h): (Picked<'_>, &[f64]),
     file: &str,
 ) -> std::result::Result<Figure, String> {
     let m = pick.model;
-    let resid = |s: &[f64]| -> Vec<f64> { y.iter().zip(s).map(|(a, s)| a - s).collect() };
+    let observed = |t: usize| rec.missing.binary_search(&t).is_err();
+    let resid = |s: &[f64]| -> Vec<f64> {
+        rec.y.iter().zip(s).enumerate().filter(|&(t, _)| observed(t)).map(|(_, (a, s))| a - s).collect()
+    };
     let e_ls = resid(y_ls);
     let e_h = resid(y_h);
     let gamma = m.gamma();
@@ -125,10 +129,15 @@ pub fn residual_figure(
         "Histograms of e_t = y_t - ŷ_t over the whole estimation record ({} samples), for the least-squares fit \
          of {} (top, with the Gaussian of the same σ) and for the Huber pick (bottom); each panel has its \
          own scale. Dashed red: ±γ; residuals beyond it form the L1 part of Huber's criterion (the pick's L1C \
-         is {:.1} %). Residuals beyond the axis (the spikes) are counted in the legends.",
+         is {:.1} %). Residuals beyond the axis (the spikes) are counted in the legends.{}",
         e_ls.len(),
         ls.key.short_label(),
-        100.0 * m.l1c()
+        100.0 * m.l1c(),
+        if rec.missing.is_empty() {
+            String::new()
+        } else {
+            format!(" The {} missing outputs of the record have no residual and are not counted.", rec.missing.len())
+        }
     );
     Ok(Figure { file: file.into(), alt: title_text, caption, svg })
 }
