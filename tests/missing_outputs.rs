@@ -27,6 +27,12 @@ impl Noise {
 /// An OE(2,2) record of N samples with Gaussian noise and 5 % spikes, and the indices of 5 % of
 /// its outputs: half of them at random, half in bursts of 20.
 fn record_with_gaps(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<usize>) {
+    let (u, _, y, missing) = records(n, seed);
+    (u, y, missing)
+}
+
+/// [`record_with_gaps`] with the full record's output beside it: (u, full y, y with gaps, gaps).
+fn records(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<usize>) {
     let (b, f) = oe22();
     let u = binary_input(n, 3, 1.0, seed);
     let mut y = oe::simulate_vec(&b, &f, 1, &u);
@@ -53,10 +59,11 @@ fn record_with_gaps(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<usize>) {
         gone[t] = true;
     }
     let missing: Vec<usize> = (0..n).filter(|&t| gone[t]).collect();
+    let full = y.clone();
     for &t in &missing {
         y[t] = f64::NAN;
     }
-    (u, y, missing)
+    (u, full, y, missing)
 }
 
 /// The criterion over the observed residuals, computed directly from its definition.
@@ -133,5 +140,26 @@ fn the_fit_minimises_the_criterion_over_the_observed_outputs() {
         let beyond = (0..n).filter(|t| missing.binary_search(t).is_err() && (y[*t] - yh[*t]).abs() > h.gamma).count();
         let l1c = beyond as f64 / (n - missing.len()) as f64;
         assert!((h.l1c - l1c).abs() < 1e-15, "L1C {} vs {l1c}", h.l1c);
+    }
+}
+
+#[test]
+fn five_percent_missing_stays_within_the_reported_std_of_the_full_record() {
+    let n = 3000;
+    let (u, y_full, y_gaps, missing) = records(n, 23);
+    let opts = SolverOptions::default();
+    let judge = Judge::default();
+    let mut ws = Workspace::new();
+    let fit = |y: &[f64], missing: &[usize], ws: &mut Workspace| {
+        let prob = Problem { u: &u, y, structure: Structure::siso(2, 2, 1), offset: true, seams: &[], missing };
+        estimate::fit_one(&prob, 1.0, &judge, &opts, ws).huber
+    };
+    let full = fit(&y_full, &[], &mut ws);
+    let gaps = fit(&y_gaps, &missing, &mut ws);
+    let std: Vec<f64> = gaps.assessment.evidence.b_std.iter().chain(&gaps.assessment.evidence.f_std).copied().collect();
+    assert_eq!(std.len(), 4);
+    for (i, ((a, g), s)) in full.theta().iter().zip(gaps.theta()).zip(&std).enumerate() {
+        assert!(s.is_finite() && *s > 0.0, "std[{i}] = {s}");
+        assert!((a - g).abs() <= *s, "theta[{i}]: full {a}, with gaps {g}, reported std {s}");
     }
 }
