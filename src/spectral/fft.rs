@@ -67,11 +67,11 @@ impl Fft {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
     /// Deterministic +/-1 sequence from a 64-bit LCG (Knuth's MMIX constants), top bit.
-    fn pm1(n: usize, seed: u64) -> Vec<f64> {
+    pub(in crate::spectral) fn pm1(n: usize, seed: u64) -> Vec<f64> {
         let mut s = seed;
         (0..n)
             .map(|_| {

@@ -388,16 +388,7 @@ mod tests {
     use super::*;
     use crate::oe::simulate_vec;
 
-    /// Deterministic +/-1 sequence from a 64-bit LCG (Knuth's MMIX constants), top bit.
-    fn pm1(n: usize, seed: u64) -> Vec<f64> {
-        let mut s = seed;
-        (0..n)
-            .map(|_| {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                if s >> 63 == 1 { 1.0 } else { -1.0 }
-            })
-            .collect()
-    }
+    use super::fft::tests::pm1;
 
     #[test]
     fn pure_delay_gives_exp_minus_jw() {
