@@ -28,6 +28,7 @@ use crate::job::{SearchMode, ValidJob};
 use crate::oe::{Orders, Structure};
 use crate::plan::{Plan, one_input_orders};
 use crate::progress::Progress;
+use crate::shard::Shard;
 use crate::sweep::{self, Context, Control, Outcome};
 use crate::table::CellRow;
 use std::collections::{BTreeSet, HashMap};
@@ -62,15 +63,18 @@ impl Search {
         Search::Coordinate(Coordinate { per_input })
     }
 
-    /// Shards split a plan's structures, which a coordinate search learns round by round from
-    /// the rows of the rounds before: `what` (`--shard 1/4`, `merge`) is refused for it.
-    pub fn check_shardable(&self, what: &str) -> Result<()> {
+    /// `oesweep slurm` submits one array of shards and one merge; a coordinate search is sharded
+    /// round by round ([`Step::Shard`]), which it does not submit: `what` (`--shards 4`) is
+    /// refused for it, saying how to run the rounds.
+    pub fn check_slurm(&self, what: &str) -> Result<()> {
         match self {
             Search::Product => Ok(()),
             Search::Coordinate(c) => Err(crate::error::Error::Invalid(format!(
-                "{what}: the job's coordinate search (grid.search; {} structures per cycle over the inputs) runs \
-                 whole with `oesweep run JOB`, which resumes from its checkpoint; set grid.search to \"product\" \
-                 to split the full product into shards",
+                "{what}: the job's coordinate search (grid.search; {} structures per cycle over the inputs) is \
+                 sharded round by round, which `oesweep slurm` does not submit: run `oesweep run JOB --shard I/N` \
+                 for every I (an array job), again after each round, until `oesweep merge OUTPUT` finds the search \
+                 finished; or run it whole with `oesweep run JOB`, or set grid.search to \"product\" to split the \
+                 full product into shards",
                 c.cycle()
             ))),
         }
@@ -121,10 +125,12 @@ impl Coordinate {
 }
 
 /// What the engine tells the coordinate search: the job's lead pick of a set of rows (None: no
-/// row takes part), and who hears of each round's cells (a caller's progress).
+/// row takes part), who hears of each round's cells (a caller's progress), and what a round
+/// whose rows are missing does (a whole run, a shard, a merge).
 pub struct Guide<'a> {
     pub lead: &'a dyn Fn(&[CellRow]) -> Option<Structure>,
     pub grow: &'a dyn Fn(usize),
+    pub step: Step,
 }
 
 /// A line: the structure with input i's orders blanked, and i.
@@ -142,6 +148,9 @@ pub struct Rounds {
     /// Per round: the input swept (0-based), the structure it went through and the lead pick
     /// after it.
     pub rounds: Vec<(usize, Structure, Structure)>,
+    /// A sharded search ([`Step::Shard`], [`Step::Replay`]): the round whose rows are not all
+    /// there yet (None: the search is finished).
+    pub pending: Option<Pending>,
 }
 
 impl Rounds {
@@ -158,9 +167,58 @@ impl Rounds {
     }
 }
 
+/// The round of a sharded coordinate search that waits for its rows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pending {
+    /// Its number (1-based): the rounds before it are finished.
+    pub round: usize,
+    /// The input it sweeps (0-based) and the structure its line goes through.
+    pub input: usize,
+    pub through: Structure,
+    /// Its structures that no earlier round fitted (in the plan's order): what the shards split.
+    pub structures: Vec<Structure>,
+    /// Of these, the share of the shard that called ([`Step::Shard`]; empty for a merge).
+    pub share: Vec<Structure>,
+}
+
+impl Pending {
+    /// The round's structures as a plan of `full`'s k and start (its cells, the shards' layout).
+    pub fn plan(&self, full: &Plan) -> Plan {
+        Plan { pairs: self.structures.clone(), ks: full.ks.clone(), start: full.start, ls_support: Vec::new() }
+    }
+
+    /// One line: `round 3 (input 2 through OE(..)): 4 structures`.
+    pub fn describe(&self) -> String {
+        format!(
+            "round {} of the coordinate search (input {} through {}): {} structures",
+            self.round,
+            self.input + 1,
+            self.through.label(),
+            self.structures.len()
+        )
+    }
+}
+
+/// What [`coordinate`] does with a round whose structures lack rows (METHOD.md 20, sharded
+/// search).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Step {
+    /// A whole run: every round's structures are fitted, to the end of the search.
+    Whole,
+    /// Shard I/N: the rounds whose rows are all given are replayed (nothing fitted, each
+    /// round's nested check run again as in a whole run); of the first round with rows missing,
+    /// the shard's share of its structures ([`crate::shard::layout`] of the round's) is fitted,
+    /// without the nested check (left to the replay, as a merge leaves it), and the call
+    /// returns with [`Rounds::pending`].
+    Shard(Shard),
+    /// A merge: the rounds whose rows are all given are replayed; the call returns at the first
+    /// round with rows missing ([`Rounds::pending`]; the rows of the finished rounds only).
+    Replay,
+}
 /// Run the coordinate search `c` over `full` (the product plan: its ks and start strategy),
 /// each round a [`sweep::run`] of the structures fitted so far and the round's line, starting
-/// from `control.done`, steered by `guide`. Rows finished go to `control.on_row` as in a sweep; the nested check of the search's
+/// from `control.done`, steered by `guide` (its `step` says what a round whose rows are
+/// missing does). Rows finished go to `control.on_row` as in a sweep; the nested check of the search's
 /// rows is the sweep's (against the sub-models fitted so far).
 pub fn coordinate(
     c: &Coordinate,
@@ -171,7 +229,7 @@ pub fn coordinate(
     control: Control,
     guide: Guide,
 ) -> Result<(Outcome, Rounds)> {
-    let Guide { lead, grow } = guide;
+    let Guide { lead, grow, step } = guide;
     let t0 = Instant::now();
     let order: HashMap<Structure, usize> = full.pairs.iter().enumerate().map(|(i, p)| (*p, i)).collect();
     let mut rows = control.done;
@@ -183,25 +241,69 @@ pub fn coordinate(
     let mut next_input = 0;
     let mut rounds = Rounds::default();
     let m = current.m();
+    let nks = full.ks.len();
+    let outcome = |rows: Vec<CellRow>, computed: usize, interrupted: bool| {
+        let seconds = t0.elapsed().as_secs_f64();
+        Outcome { rows, seconds, resumed, computed, interrupted }
+    };
     // Step 3's next line: the next input whose line through `current` is not swept.
     while let Some(i) = (0..m).map(|j| (next_input + j) % m).find(|&j| !swept.contains(&line_key(&current, j))) {
         swept.insert(line_key(&current, i));
         let line: Vec<usize> = c.line(&current, i).iter().map(|s| order[s]).collect();
-        let new = line.iter().filter(|p| !fitted.contains(p)).count();
+        let new: Vec<usize> =
+            line.iter().copied().filter(|p| !fitted.contains(p)).collect::<BTreeSet<usize>>().into_iter().collect();
+        let round_plan = restricted(full, &new);
+        let missing = crate::shard::missing(&round_plan, &rows);
+        if step != Step::Whole && !missing.is_empty() {
+            let mut pending = Pending {
+                round: rounds.rounds.len() + 1,
+                input: i,
+                through: current,
+                structures: round_plan.pairs.clone(),
+                share: Vec::new(),
+            };
+            let mut interrupted = false;
+            match step {
+                Step::Shard(s) => {
+                    let mine: Vec<usize> = crate::shard::layout(&round_plan, s.count)
+                        .swap_remove(s.index)
+                        .into_iter()
+                        .map(|j| new[j])
+                        .collect();
+                    pending.share = mine.iter().map(|&p| full.pairs[p]).collect();
+                    let share = restricted(full, &mine);
+                    let todo = crate::shard::missing(&share, &rows).cells;
+                    progress.grow(todo);
+                    grow(todo);
+                    if !mine.is_empty() {
+                        let plan = share_plan(full, &fitted, &new, &mine);
+                        let round = Control { done: std::mem::take(&mut rows), nested: false, ..control };
+                        let out = sweep::run(&plan, ctx, threads, progress, round)?;
+                        computed += out.computed;
+                        rows = out.rows;
+                        interrupted = !crate::shard::missing(&share, &rows).is_empty();
+                    }
+                }
+                // The rows of the finished rounds, checked as in a whole run.
+                _ => rows.retain(|r| is_fitted(&fitted, &order, r)),
+            }
+            rounds.structures = fitted.len();
+            rounds.pending = Some(pending);
+            return Ok((outcome(rows, computed, interrupted), rounds));
+        }
         fitted.extend(line);
-        // The progress's length grows by the round's cells.
-        progress.grow(new * full.ks.len());
-        grow(new * full.ks.len());
-        let plan =
-            Plan { pairs: fitted.iter().map(|&p| full.pairs[p]).collect(), ls_support: Vec::new(), ..full.clone() };
-        let round = Control { done: std::mem::take(&mut rows), ..control };
+        // The progress's length grows by the round's cells left to fit.
+        progress.grow(missing.cells);
+        grow(new.len() * nks);
+        let plan = restricted(full, &fitted.iter().copied().collect::<Vec<usize>>());
+        let round = Control { done: std::mem::take(&mut rows), nested: true, ..control };
         let out = sweep::run(&plan, ctx, threads, progress, round)?;
         computed += out.computed;
         rows = out.rows;
-        if out.interrupted {
-            let seconds = t0.elapsed().as_secs_f64();
+        // Rows of later rounds (a resumed run's) are not this round's: its own must all be there.
+        if out.interrupted || !crate::shard::missing(&round_plan, &rows).is_empty() {
             rounds.structures = fitted.len();
-            return Ok((Outcome { rows, seconds, resumed, computed, interrupted: true }, rounds));
+            return Ok((outcome(rows, computed, true), rounds));
         }
         let before = current;
         // A resumed run's checkpoint holds rows of later rounds: the lead of the rows fitted
@@ -215,8 +317,42 @@ pub fn coordinate(
     }
     rows.retain(|r| is_fitted(&fitted, &order, r));
     rounds.structures = fitted.len();
-    let seconds = t0.elapsed().as_secs_f64();
-    Ok((Outcome { rows, seconds, resumed, computed, interrupted: false }, rounds))
+    Ok((outcome(rows, computed, false), rounds))
+}
+
+/// The plan of a shard's share `mine` of a round whose new structures are `new` (indices into
+/// `full.pairs`): the structures of the earlier rounds (`earlier`; their rows are given, so
+/// nothing of them is fitted again and their least-squares fits are read from their rows, as in
+/// a whole run) and `mine`, with the round's other new structures that `mine` starts from
+/// (sub-models, and theirs in turn) as least-squares support ([`Plan::ls_support`], as
+/// [`Plan::with_pairs`] keeps a product shard's): each structure of the share starts from the
+/// same nested fits as in the whole round, so its rows are the whole round's bits.
+fn share_plan(full: &Plan, earlier: &BTreeSet<usize>, new: &[usize], mine: &[usize]) -> Plan {
+    let others: HashMap<Structure, usize> =
+        new.iter().filter(|p| !mine.contains(p)).map(|&p| (full.pairs[p], p)).collect();
+    let mut support = BTreeSet::new();
+    let mut stack: Vec<Structure> = mine.iter().map(|&p| full.pairs[p]).collect();
+    while let Some(s) = stack.pop() {
+        for sub in crate::plan::sub_structures(&s) {
+            if let Some(&p) = others.get(&sub)
+                && support.insert(p)
+            {
+                stack.push(sub);
+            }
+        }
+    }
+    let own: Vec<usize> = earlier.iter().chain(mine).copied().collect::<BTreeSet<usize>>().into_iter().collect();
+    Plan { ls_support: support.iter().map(|&p| full.pairs[p]).collect(), ..restricted(full, &own) }
+}
+
+/// `full` restricted to its pairs `pairs` (indices, in the order given), without support.
+fn restricted(full: &Plan, pairs: &[usize]) -> Plan {
+    Plan {
+        pairs: pairs.iter().map(|&p| full.pairs[p]).collect(),
+        ks: full.ks.clone(),
+        start: full.start,
+        ls_support: Vec::new(),
+    }
 }
 
 fn is_fitted(fitted: &BTreeSet<usize>, order: &HashMap<Structure, usize>, row: &CellRow) -> bool {

@@ -63,7 +63,7 @@ fn layout(req: &SlurmRequest) -> Result<Layout> {
     // Bad input is found here, not in N array tasks an hour later in the queue.
     let p = crate::engine::prepare(&req.job)?;
     let n = req.shards;
-    p.search.check_shardable(&format!("--shards {n}"))?;
+    p.search.check_slurm(&format!("--shards {n}"))?;
     crate::shard::check_count(n, &p.plan).map_err(|m| Error::Invalid(format!("--shards {n}: {m}")))?;
     let out = p.job.output().to_path_buf();
     let job_file = req.job.canonicalize().map_err(|e| Error::input(&req.job, format!("cannot resolve: {e}")))?;

@@ -1,15 +1,19 @@
 //! The coordinate search of several inputs (METHOD.md 20, `src/search.rs`): on a three-input
 //! record it reaches the full product's lead pick (the true orders) with a fraction of its
 //! fits; a search stopped after any of its rows and resumed gives the table of a run that was
-//! never stopped, on another thread count; shards and merge refuse it by name.
+//! never stopped, on another thread count; sharded round by round (every shard, then the merge,
+//! until the merge finds the search finished) it gives the whole run's table bit for bit at two
+//! shard counts; a merge names the round that waits for its rows; `oesweep slurm` refuses it by
+//! name.
 
 mod common;
 
 use common::*;
-use oesweep::engine::{self, Prepared, RunOptions};
+use oesweep::engine::{self, MergeEnd, Prepared, RunEnd, RunOptions};
 use oesweep::oe::{self, Orders, Structure};
 use oesweep::progress::Progress;
 use oesweep::search::{self, Search};
+use oesweep::shard::Shard;
 use oesweep::sweep::{self, Control};
 use oesweep::table::CellRow;
 use std::path::{Path, PathBuf};
@@ -70,7 +74,7 @@ fn search_rows(p: &Prepared, threads: usize, done: Vec<CellRow>) -> (Vec<CellRow
     let on_row = |r: &CellRow| reported.lock().unwrap().push(r.clone());
     let control = Control { done, on_row: &on_row, ..Control::none() };
     let lead = |rows: &[CellRow]| engine::lead_structure(&p.job, rows);
-    let guide = search::Guide { lead: &lead, grow: &|_| () };
+    let guide = search::Guide { lead: &lead, grow: &|_| (), step: search::Step::Whole };
     let (out, rounds) = search::coordinate(c, &p.plan, &p.context(), threads, &Progress::new(0, true), control, guide)
         .expect("the search runs");
     assert!(!out.interrupted);
@@ -126,14 +130,21 @@ fn a_search_stopped_after_any_of_its_rows_resumes_to_the_same_table() {
 }
 
 #[test]
-fn shards_and_merge_refuse_a_coordinate_search_by_name() {
+fn a_stopped_search_merges_to_its_next_round_and_slurm_refuses_it_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let path = job(dir.path(), "coordinate");
-    let opts = RunOptions { quiet: true, shard: Some("1/2".parse().unwrap()), ..RunOptions::default() };
-    let err = engine::run(&path, &opts, &|_| ()).unwrap_err();
+    let req = oesweep::slurm::SlurmRequest {
+        job: path.clone(),
+        shards: 2,
+        sbatch: None,
+        cpus_per_task: None,
+        sbatch_args: Vec::new(),
+        report: false,
+    };
+    let err = oesweep::slurm::commands(&req).unwrap_err();
     assert!(err.is_bad_input(), "{err}");
-    assert!(err.to_string().contains("--shard 1/2: the job's coordinate search"), "{err}");
-    // A run stopped before its first cell leaves a checkpoint that merge refuses...
+    assert!(err.to_string().contains("--shards 2: the job's coordinate search"), "{err}");
+    // A run stopped before its first cell leaves a checkpoint whose merge names the first round...
     let watch = engine::Watch {
         stop: Arc::new(AtomicBool::new(true)),
         done: Default::default(),
@@ -143,14 +154,76 @@ fn shards_and_merge_refuse_a_coordinate_search_by_name() {
     let opts = RunOptions { quiet: true, watch: Some(watch), ..RunOptions::default() };
     let o = engine::run(&path, &opts, &|_| ()).unwrap();
     assert!(matches!(o.end, engine::RunEnd::Interrupted));
-    let err = engine::merge(&dir.path().join("out"), false, false).unwrap_err();
-    assert!(err.is_bad_input(), "{err}");
-    assert!(err.to_string().contains("merge: the job's coordinate search"), "{err}");
+    let m = engine::merge(&dir.path().join("out"), false, false).unwrap();
+    assert!(matches!(m.end, MergeEnd::Incomplete) && m.exit_code() == 1, "{m:?}");
+    let pending = m.search.and_then(|r| r.pending).expect("the round to run");
+    assert_eq!((pending.round, pending.input), (1, 0));
+    assert_eq!(pending.structures.len(), 4, "input 1's line through the start");
     // ... and the run resumes it to the results of the rows it fitted.
     let opts = RunOptions { quiet: true, ..RunOptions::default() };
     let o = engine::run(&path, &opts, &|_| ()).unwrap();
     assert!(matches!(o.end, engine::RunEnd::Merged { .. }));
     assert!(o.cells > 0 && o.cells < 64 * 2, "{} cells", o.cells);
+}
+
+/// A job of `job`'s record with another output folder (for the whole run beside the shards).
+fn job_with_output(dir: &Path, search: &str, output: &str) -> PathBuf {
+    let text = std::fs::read_to_string(job(dir, search)).unwrap().replace("\"out\"", &format!("\"{output}\""));
+    let path = dir.join(format!("{output}.json"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn cells(folder: &Path) -> Vec<CellRow> {
+    zero_seconds(oesweep::export::parquet::read_cells(&folder.join("cells.parquet")).unwrap())
+}
+
+#[test]
+fn a_search_sharded_round_by_round_merges_to_the_table_of_a_whole_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let reference = job_with_output(dir.path(), "coordinate", "ref");
+    let path = job(dir.path(), "coordinate");
+    let whole = engine::run(&reference, &RunOptions { quiet: true, ..RunOptions::default() }, &|_| ()).unwrap();
+    let rounds = whole.search.clone().expect("a coordinate search");
+    let expected = cells(&dir.path().join("ref"));
+    let selection = std::fs::read_to_string(dir.path().join("ref/selection.json")).unwrap();
+    let out = dir.path().join("out");
+    for n in [2, 3] {
+        let _ = std::fs::remove_dir_all(&out);
+        // Every shard of the round, then the merge: the next round, or the results.
+        let mut merges = Vec::new();
+        loop {
+            for index in 0..n {
+                let shard = Some(Shard { index, count: n });
+                let o = engine::run(
+                    &path,
+                    &RunOptions { quiet: true, threads: 1, shard, ..RunOptions::default() },
+                    &|_| (),
+                )
+                .unwrap();
+                assert!(matches!(o.end, RunEnd::ShardSaved), "{o:?}");
+                let pending = o.search.as_ref().and_then(|r| r.pending.as_ref()).expect("the shard's round");
+                assert_eq!(o.pairs, pending.share.len());
+                assert!(pending.share.iter().all(|s| pending.structures.contains(s)));
+            }
+            let m = engine::merge(&out, false, false).unwrap();
+            let replayed = m.search.clone().expect("the rounds replayed");
+            if let MergeEnd::Merged { .. } = m.end {
+                assert_eq!(replayed, rounds, "N = {n}: the rounds of the whole run");
+                break;
+            }
+            assert!(matches!(m.end, MergeEnd::Incomplete) && m.exit_code() == 1, "{m:?}");
+            let pending = replayed.pending.expect("the round the shards run next");
+            assert!(merges.last().is_none_or(|&r| r < pending.round), "each round once: {merges:?}, {}", pending.round);
+            assert_eq!(m.missing.pairs.len(), pending.structures.len(), "no row of the next round yet");
+            merges.push(pending.round);
+            assert!(merges.len() <= rounds.rounds.len(), "N = {n}: more rounds than the whole run's");
+        }
+        assert!(merges.len() >= 2, "N = {n}: the search took several rounds of shards: {merges:?}");
+        assert!(cells(&out) == expected, "N = {n}: the merged table differs from the whole run's");
+        assert_eq!(std::fs::read_to_string(out.join("selection.json")).unwrap(), selection, "N = {n}");
+        assert!(!out.join("parts").exists(), "a finished merge deletes the checkpoint");
+    }
 }
 
 #[test]

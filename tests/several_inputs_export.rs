@@ -214,8 +214,8 @@ fn a_two_input_pick_leaves_per_input_in_every_form_and_the_report_draws_each_inp
     ok(&oesweep(&root, &["export", "out", "--to", "mat", "--continuous", "tustin", "--out", "m.mat"]));
     assert!(std::fs::metadata(root.join("m.mat")).unwrap().len() > 0);
 
-    // The report: one Bode figure per pick and input, a heat map and curves per input, and the
-    // note that there is no per-input spectral estimate.
+    // The report: one Bode figure per pick and input against the input's measured response, a
+    // heat map and curves per input.
     ok(&oesweep(&root, &["report", "out"]));
     let page = std::fs::read_to_string(out.join("report.html")).unwrap();
     for file in [
@@ -237,9 +237,12 @@ fn a_two_input_pick_leaves_per_input_in_every_form_and_the_report_draws_each_inp
     }
     assert_eq!(page.matches("src=\"report-bode-").count(), 4, "2 picks x 2 inputs");
     assert_eq!(page.matches("src=\"report-heat-").count(), 2, "one heat map per input");
-    assert!(page.contains("no per-input spectral estimate"), "the page says why there is no measured response");
     let bode = std::fs::read_to_string(out.join("report-bode-m1-u2.svg")).unwrap();
     assert!(bode.contains("from input v"), "the figure names its input");
+    assert!(
+        bode.contains("Welch estimate H = P⁻¹ s, input v"),
+        "the input's measured response (tests/report_inputs.rs)"
+    );
     let heat = std::fs::read_to_string(out.join("report-heat-u2.svg")).unwrap();
     assert!(heat.contains("input v (the other inputs at"), "the heat map names its input");
 

@@ -85,6 +85,17 @@ class Model:
     ``covariance`` (over b, f and an estimated offset) when it is known.
     """
 
+    # One input: scalars and flat lists; several: one entry per input (``inputs``). Set from
+    # the source's fields (a field the source lacks reads as None).
+    nb: Union[int, List[int]]
+    nf: Union[int, List[int]]
+    delay: Union[int, List[int]]
+    b: Union[List[float], List[List[float]]]
+    f: Union[List[float], List[List[float]]]
+    b_std: Optional[Union[List[float], List[List[float]]]]
+    f_std: Optional[Union[List[float], List[List[float]]]]
+    input_level: Optional[Union[float, List[float]]]
+
     def __init__(self, fields: Dict[str, Any]):
         self._fields = dict(fields)
         for key, value in fields.items():

@@ -17,17 +17,20 @@ class DataError(ValueError): ...
 class OutputError(OSError): ...
 class LockError(OutputError): ...
 
+# One array and one order of each kind per input (`oesweep.fit` turns a single int into the
+# list of one); the JSON's `nb`, `nf`, `delay`, `b`, `f`, `b_std`, `f_std`, `input_level` are
+# scalars and flat lists for one input and hold one entry per input for several.
 def fit(
-    u: _Floats,
+    u: list[_Floats],
     y: _Floats,
-    nb: int,
-    nf: int,
+    nb: list[int],
+    nf: list[int],
     k: float,
-    delay: int,
+    delay: list[int],
     ts: float,
     offset: str,
     initial_state: str,
-    val_u: Optional[_Floats] = None,
+    val_u: Optional[list[_Floats]] = None,
     val_y: Optional[_Floats] = None,
 ) -> str: ...
 def run(

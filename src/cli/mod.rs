@@ -238,7 +238,6 @@ fn run_simulate(a: &SimulateArgs) -> Result<u8> {
 fn run_plan(a: &PlanArgs) -> Result<u8> {
     let p = engine::prepare(&a.job)?;
     if let Some(n) = a.shards {
-        p.search.check_shardable(&format!("--shards {n}"))?;
         shard::check_count(n, &p.plan).map_err(|m| Error::Invalid(format!("--shards {n}: {m}")))?;
     }
     let j = &p.job;
@@ -290,8 +289,13 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
     for w in &p.inputs.warnings {
         eprintln!("warning: {w}");
     }
-    if let Some(n) = a.shards {
-        print_layout(&p.plan, n);
+    match (a.shards, &p.search) {
+        (Some(n), crate::search::Search::Product) => print_layout(&p.plan, n),
+        (Some(n), crate::search::Search::Coordinate(_)) => outln!(
+            "shards     {n}, round by round: each round's new structures dealt among them (`oesweep run JOB --shard \
+             I/{n}` for every I, again for each round, until `oesweep merge` finds the search finished)"
+        ),
+        (None, _) => {}
     }
     Ok(0)
 }
@@ -400,7 +404,17 @@ fn run_job(a: &RunArgs) -> Result<u8> {
             }
             outln!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
             let count = o.shard.map_or(1, |s| s.count);
-            outln!("when all {count} shards are done: oesweep merge {}", o.out.display());
+            match o.search.as_ref().map(|r| &r.pending) {
+                Some(Some(p)) => outln!(
+                    "{}: this shard's {} saved; when all {count} shards are done with it, run them again for the \
+                     next round (`oesweep merge {}` says whether the search has finished)",
+                    p.describe(),
+                    p.share.len(),
+                    o.out.display()
+                ),
+                Some(None) => outln!("the coordinate search is finished: oesweep merge {}", o.out.display()),
+                None => outln!("when all {count} shards are done: oesweep merge {}", o.out.display()),
+            }
         }
         RunEnd::Merged { ref selection, .. } => {
             outln!("{}: {cells} cells ({failed} failed) + {pairs} least-squares fits", o.label);
@@ -469,6 +483,9 @@ fn run_merge(a: &MergeArgs) -> Result<u8> {
     match &m.end {
         MergeEnd::AlreadyMerged => outln!("{}: already merged (no checkpoint left), nothing to do", out.display()),
         MergeEnd::Incomplete => {
+            if let Some(p) = m.search.as_ref().and_then(|r| r.pending.as_ref()) {
+                eprintln!("the coordinate search goes on: {} waits for its rows", p.describe());
+            }
             eprintln!(
                 "nothing written; rerun the missing shards and merge again, or merge what there is with --partial"
             );

@@ -18,21 +18,19 @@
 use crate::checkpoint::{self, Manifest, Writer};
 
 use crate::error::{Error, Result};
-use crate::export;
 use crate::job::{self, Inputs, ValidJob};
 use crate::plan::Plan;
 use crate::profile::{Phase, Profile, ProfileReport, Span};
 use crate::progress::Progress;
 use crate::reduce::{self, Selection};
-use crate::search::Search;
-use crate::shard::{self, Missing, Shard};
+use crate::search::{Search, Step};
+use crate::shard::{self, Shard};
 pub use write::lead_structure;
 use write::write_results;
 
 use crate::spectral::{self, SpectralEstimate};
 use crate::sweep::{self, Context};
 use crate::table::CellRow;
-use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -41,6 +39,7 @@ use std::time::{Duration, Instant};
 
 mod beyond;
 mod export_model;
+mod merge;
 pub mod per_input;
 mod single;
 mod spectrum;
@@ -48,6 +47,7 @@ mod uncertainty;
 mod write;
 
 pub use export_model::{PickSpec, export_model};
+pub use merge::{MergeEnd, MergeOutcome, merge};
 pub use single::{FitReport, FitRequest, fit, fit_arrays, simulate};
 pub use spectrum::{SpectrumReport, SpectrumRequest, spectrum, spectrum_arrays};
 
@@ -308,9 +308,14 @@ fn run_loaded(
     let out = p.job.output().to_path_buf();
     let (plan, label) = match opts.shard {
         Some(s) => {
-            p.search.check_shardable(&format!("--shard {s}"))?;
             shard::check_count(s.count, &p.plan).map_err(|m| Error::Invalid(format!("--shard {s}: {m}")))?;
-            (shard::plan_of(&p.plan, s).0, format!("{} shard {s}", p.job.job.name))
+            // A coordinate search's shard splits its rounds ([`crate::search::Step::Shard`]):
+            // the whole plan, the round found from the rows.
+            let plan = match p.search {
+                Search::Product => shard::plan_of(&p.plan, s).0,
+                Search::Coordinate(_) => p.plan.clone(),
+            };
+            (plan, format!("{} shard {s}", p.job.job.name))
         }
         None => (p.plan.clone(), p.job.job.name.clone()),
     };
@@ -324,10 +329,16 @@ fn run_loaded(
         None => crate::lock::lock_output(&out)?,
     };
     // A checkpoint of another job is bad input too: refused before anything is written.
-    let existing = match (opts.force, opts.shard) {
-        (true, _) => checkpoint::Existing::default(),
-        (false, Some(_)) => checkpoint::inspect(&parts, &manifest, &plan)?,
-        (false, None) => checkpoint::inspect_all(&out, &manifest, &plan)?,
+    let existing = match (opts.force, opts.shard, &p.search) {
+        (true, _, _) => checkpoint::Existing::default(),
+        // A coordinate search's shard reads every folder's rows (the rounds so far), and
+        // numbers its parts on in its own folder.
+        (false, Some(_), Search::Coordinate(_)) => checkpoint::Existing {
+            next_part: checkpoint::inspect(&parts, &manifest, &plan)?.next_part,
+            ..checkpoint::inspect_all(&out, &manifest, &plan)?
+        },
+        (false, Some(_), Search::Product) => checkpoint::inspect(&parts, &manifest, &plan)?,
+        (false, None, _) => checkpoint::inspect_all(&out, &manifest, &plan)?,
     };
     checkpoint::open(&out, opts.shard, &manifest, &p.job, opts.force)?;
     // A coordinate search learns its cells round by round: counted from none.
@@ -355,7 +366,8 @@ fn run_loaded(
         Duration::from_secs_f64(opts.checkpoint_every),
         checkpoint::BATCH_ROWS,
     );
-    let progress = Progress::new(cells - resumed_huber, opts.quiet);
+    // A coordinate search counts from none and grows by each round's cells left to fit.
+    let progress = Progress::new(cells.saturating_sub(resumed_huber), opts.quiet);
     if let Some(w) = &opts.watch {
         w.total.store(cells, Ordering::Relaxed);
         w.done.store(resumed_huber, Ordering::Relaxed);
@@ -392,7 +404,8 @@ fn run_loaded(
                         w.total.fetch_add(n, Ordering::Relaxed);
                     }
                 };
-                let guide = crate::search::Guide { lead: &lead, grow: &grow };
+                let step = opts.shard.map_or(Step::Whole, Step::Shard);
+                let guide = crate::search::Guide { lead: &lead, grow: &grow, step };
                 crate::search::coordinate(c, &plan, &ctx, opts.threads, &progress, control, guide).map(|(o, r)| {
                     searched = Some(r);
                     o
@@ -405,7 +418,15 @@ fn run_loaded(
     // Workers refused: no cell was computed, a rerun starts where this one would have.
     let outcome = outcome?;
     let (cells, pairs) = match &searched {
-        Some(r) => (r.structures * plan.ks.len(), r.structures),
+        // A shard's cells: its share of the round it ran.
+        Some(r) => {
+            let structures = match (&r.pending, opts.shard) {
+                (Some(p), Some(_)) => p.share.len(),
+                (None, Some(_)) => 0,
+                _ => r.structures,
+            };
+            (structures * plan.ks.len(), structures)
+        }
         None => (cells, pairs),
     };
     let mut result = RunOutcome {
@@ -457,121 +478,5 @@ fn run_loaded(
     result.cleanup = checkpoint::remove(&out).err();
     let report = opts.report.then(|| crate::report::write_report(&out));
     result.end = RunEnd::Merged { selection: Box::new(selection), report };
-    Ok(result)
-}
-
-/// How [`merge`] ended.
-#[derive(Debug)]
-pub enum MergeEnd {
-    /// No checkpoint left and the result files are there: merged before, nothing to do.
-    AlreadyMerged,
-    /// Cells are missing and `partial` was not asked for: nothing written.
-    Incomplete,
-    /// The result files are written (with `missing` cells left out under `partial`; the
-    /// checkpoint is then kept, else deleted).
-    Merged { selection: Box<Selection> },
-}
-
-/// The outcome of [`merge`].
-#[derive(Debug)]
-pub struct MergeOutcome {
-    pub end: MergeEnd,
-    /// The job's name.
-    pub name: String,
-    pub plan: Option<Plan>,
-    /// Cells and fits missing from the checkpoint folders.
-    pub missing: Missing,
-    /// When the folders say how the job was split into N shards: N and the shards that hold
-    /// the missing cells.
-    pub owners: Option<(usize, Vec<usize>)>,
-    /// Checkpoint folders read with their part counts (those with parts).
-    pub folders: Vec<(PathBuf, usize)>,
-    /// Cells saved twice (identical rows), kept once.
-    pub duplicates: usize,
-    /// Huber cells and least-squares fits merged; failed Huber cells in the table.
-    pub huber: usize,
-    pub ls: usize,
-    pub failed: usize,
-    pub cleanup: Option<Error>,
-    pub report: Option<Result<PathBuf>>,
-}
-
-impl MergeOutcome {
-    /// 1 when cells are missing (without `partial`) or a cell of the table failed, else 0.
-    pub fn exit_code(&self) -> u8 {
-        match self.end {
-            MergeEnd::Incomplete => 1,
-            _ if self.failed > 0 => 1,
-            _ => 0,
-        }
-    }
-}
-
-/// Merge every checkpoint folder of an output folder (shards, or an interrupted whole run):
-/// check that together they hold every cell of the job exactly once and write the result files
-/// exactly as a whole run does (same rows, same order, same reducer). Missing cells: nothing
-/// is written unless `partial`. A complete merge deletes the checkpoint, like a whole run; a
-/// folder already merged is left as it is (so a merge job that runs twice succeeds twice).
-pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
-    if !out.is_dir() {
-        return Err(Error::input(out, "not a folder"));
-    }
-    let _lock = crate::lock::lock_output(out)?;
-    let mut result = MergeOutcome {
-        end: MergeEnd::AlreadyMerged,
-        name: String::new(),
-        plan: None,
-        missing: Missing::default(),
-        owners: None,
-        folders: Vec::new(),
-        duplicates: 0,
-        huber: 0,
-        ls: 0,
-        failed: 0,
-        cleanup: None,
-        report: None,
-    };
-    let merged = export::RESULT_FILES.iter().all(|f| out.join(f).is_file());
-    if !merged || out.join(checkpoint::PARTS_DIR).exists() {
-        let g = checkpoint::gather(out)?;
-        Search::of_job(&g.job, &g.plan).check_shardable("merge")?;
-        result.name = g.job.job.name.clone();
-        result.duplicates = g.duplicates;
-        result.missing = shard::missing(&g.plan, &g.rows);
-        // The shards to rerun, when the folders say how the job was split.
-        let counts: BTreeSet<usize> = g.folders.iter().filter_map(|(_, s, _)| s.map(|s| s.count)).collect();
-        if let [n] = counts.iter().copied().collect::<Vec<_>>()[..] {
-            let layout = shard::layout(&g.plan, n);
-            let owners = (0..n)
-                .filter(|&s| layout[s].iter().any(|p| result.missing.pairs.iter().any(|(q, _, _)| q == p)))
-                .collect();
-            result.owners = Some((n, owners));
-        }
-        result.folders = g.folders.iter().filter(|(_, _, n)| *n > 0).map(|(d, _, n)| (d.clone(), *n)).collect();
-        result.plan = Some(g.plan.clone());
-        if !result.missing.is_empty() && !partial {
-            result.end = MergeEnd::Incomplete;
-            return Ok(result);
-        }
-        // The records read again (not kept in the folder), for the nested pass of a whole run.
-        let mut prepared = prepare_job(g.job.clone()).ok();
-        let mut rows = g.rows;
-        if let Some(p) = &mut prepared {
-            let skipped = sweep::nested_pass_of_rows_from(&g.kernels, &g.plan, &p.context(), &mut rows)?;
-            p.inputs.warnings.extend(skipped);
-        }
-        let inputs = prepared.as_ref().map(|p| &p.inputs);
-        let selection = write_results(out, &g.job, &rows, inputs, 0)?;
-        result.huber = crate::table::huber_rows(&rows);
-        result.ls = rows.len() - result.huber;
-        if result.missing.is_empty() {
-            result.cleanup = checkpoint::remove(out).err();
-        }
-        result.end = MergeEnd::Merged { selection: Box::new(selection) };
-    }
-    if report {
-        result.report = Some(crate::report::write_report(out));
-    }
-    result.failed = crate::table::failed_cells(&export::parquet::read_cells(&out.join(export::CELLS_FILE))?);
     Ok(result)
 }

@@ -6,7 +6,9 @@
 //! one picture. The report draws it one input at a time: the rows whose other inputs have the
 //! lead pick's orders (and input i the lead pick's delay), keyed as one input's (nB_i, nF_i)
 //! rows, so the one-input heat maps and W/L1C curves draw them unchanged. That slice holds the
-//! lead pick; another pick is outlined on it only where it lies on it.
+//! lead pick; another pick is outlined on it only where it lies on it. How the picks move with
+//! k is one figure per input: the rules applied to every row of each k (the whole grid, not the
+//! slice), that input's orders drawn.
 
 use super::figures::{self, Picked};
 use super::html::{Section, esc};
@@ -131,16 +133,19 @@ pub(super) fn grid_section(
         let file = format!("report-heat-u{u}.svg");
         let drawn = figures::heat_figure(&rows, ki, s.k_of(ki), sel.basis, &outlined, &scope, &file);
         figs.push(figure(&s.folder, &file, drawn)?);
+        // The rules on every row of each k (not the slice): the picks as the whole grid gives
+        // them, input i's orders drawn.
+        let file = format!("report-picks-k-u{u}.svg");
+        let name = s.input_name(i);
+        let drawn = figures::picks_by_k_figure(&s.rows, &s.job.ks, sel, Some((i, &name)), &file);
+        figs.push(figure(&s.folder, &file, drawn)?);
     }
-    notes.push(
-        "How the picks move with k (one input's orders against k) is not drawn for several inputs: \
-         selection.json lists every rule's pick."
-            .into(),
-    );
     let intro = format!(
         "<p>A grid of {} inputs is the product of the inputs' order grids. Each input's figures show its \
          slice through the {} pick ({}): the other inputs held at that pick's orders, this input's nB and nF \
-         varied at its delay, at the pick's k. A pick is outlined where it lies on the slice.</p>\n",
+         varied at its delay, at the pick's k. A pick is outlined where it lies on the slice. How the picks move \
+         with k is drawn per input too: the pick rules applied to every row of each k alone, that input's \
+         orders.</p>\n",
         s.job.m,
         lead.name,
         esc(&lead.label())

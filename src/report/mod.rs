@@ -39,9 +39,11 @@
 //! 8. **Every pick rule and the information criteria against nB + nF** (`rules.rs`).
 //!
 //! A model of several inputs (`inputs.rs`) has figures 1-3 per input, on the input's slice of
-//! the grid through the lead pick (the other inputs at its orders); figure 4 is left out; figure
-//! 5 is one per pick and input without a measured estimate (no per-input spectral estimate of a
-//! several-input record exists yet); the residuals' cross-correlation is one per input.
+//! the grid through the lead pick (the other inputs at its orders); figure 4 per input (the
+//! rules on every row of each k, that input's orders drawn); figure 5 one per pick and input,
+//! against that input's column of the record's estimate `H = P^-1 s` with the multiple
+//! coherence below ([`crate::spectral::estimate_inputs`], METHOD.md 19); the residuals'
+//! cross-correlation is one per input.
 //!
 //! and tables: the picks with gamma, sigma, W, L1C, fits, pole radius and convergence, the
 //! least-squares fits of the same orders, b and f (paper Tables 2, 3), the reducer's rule
@@ -413,7 +415,7 @@ fn maps_section(s: &Review, grid: &GridView, m1: Option<Picked>, m2: Option<Pick
         )?);
     }
     let file = "report-picks-k.svg";
-    figs.push(figure(folder, file, figures::picks_by_k_figure(grid_rows, &s.job.ks, sel, file))?);
+    figs.push(figure(folder, file, figures::picks_by_k_figure(grid_rows, &s.job.ks, sel, None, file))?);
     let shown = if n_k <= MAX_HEAT_MAPS { "every k of the grid" } else { "k spread over the grid and the picks' k" };
     Ok(Section {
         id: "maps",

@@ -9,8 +9,8 @@ use crate::estimate::InitialState;
 
 /// The picks' frequency responses against the spectral estimate (paper Figs. 11 and 13), with
 /// the gain band of the covariance the run computed. Several inputs: one figure per pick and
-/// input, each input's filter alone (no per-input spectral estimate exists yet, and the page
-/// says so).
+/// input, each input's filter against that input's estimate `H_i = (P^-1 s)_i` of the record
+/// ([`crate::spectral::estimate_inputs`]) with the multiple coherence below.
 pub(super) fn bode_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -> Result<Section> {
     let folder = &s.folder;
     let picks: Vec<Picked> = m1.into_iter().chain(m2).collect();
@@ -22,11 +22,16 @@ pub(super) fn bode_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -
         pick.as_ref().and_then(|q| q.covariance.clone())
     };
     if s.job.m > 1 {
-        notes.push(format!(
-            "A model of {} inputs: each input's response is drawn on its own, without a measured estimate \
-             (there is no per-input spectral estimate of a several-input record yet).",
-            s.job.m
-        ));
+        // One estimate per input, H_i = (P^-1 s)_i (METHOD.md 19), drawn on that input's figure.
+        let est = &s.est;
+        let ests =
+            match crate::spectral::estimate_inputs(&est.u, s.job.m, &est.y, &est.seams, s.ts(), s.job.job.spectrum) {
+                Ok(e) => Some(e),
+                Err(e) => {
+                    notes.push(format!("No spectral estimate of the estimation record: {e}"));
+                    None
+                }
+            };
         for p in &picks {
             let structure = p.model.key.structure();
             let (b, f) = (structure.split_b(&p.model.fit.b), structure.split_f(&p.model.fit.f));
@@ -39,8 +44,10 @@ pub(super) fn bode_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -
                 };
                 let gain_band: Option<&dyn Fn(f64) -> (f64, f64)> = block.is_some().then_some(&gain);
                 let name = s.input_name(i);
-                let response = Response { b: &b[i], f: &f[i], delay: o.delay, input: Some(&name) };
-                let drawn = figures::bode_figure((None, s.ts()), None, *p, response, gain_band, &file);
+                let band_fit = p.model.fit.fit_band_inputs.as_ref().and_then(|v| v.get(i).copied());
+                let response = Response { b: &b[i], f: &f[i], delay: o.delay, input: Some(&name), band_fit };
+                let e = ests.as_ref().and_then(|e| e.get(i));
+                let drawn = figures::bode_figure((e, s.ts()), s.job.job.band_hz, *p, response, gain_band, &file);
                 figs.push(figure(folder, &file, drawn)?);
             }
         }
@@ -68,7 +75,13 @@ pub(super) fn bode_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -
                         )
                     };
                     let gain_band: Option<&dyn Fn(f64) -> (f64, f64)> = cov.is_some().then_some(&gain);
-                    let response = Response { b: &m.fit.b, f: &m.fit.f, delay: m.key.delay as usize, input: None };
+                    let response = Response {
+                        b: &m.fit.b,
+                        f: &m.fit.f,
+                        delay: m.key.delay as usize,
+                        input: None,
+                        band_fit: m.fit.fit_band,
+                    };
                     let drawn =
                         figures::bode_figure((Some(&est), s.ts()), s.job.job.band_hz, *p, response, gain_band, &file);
                     figs.push(figure(folder, &file, drawn)?);

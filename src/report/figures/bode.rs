@@ -13,21 +13,25 @@ fn wrap180(d: f64) -> f64 {
     if w <= -180.0 { w + 360.0 } else { w }
 }
 
-/// The filter a Bode figure draws: one input's `q^-delay B/F` of a pick, and for a model of
-/// several inputs the input's name.
+/// The filter a Bode figure draws: one input's `q^-delay B/F` of a pick, for a model of
+/// several inputs the input's name, and the pick's band fit of that filter (one input:
+/// `fit_band`; several: the input's entry of `fit_band_i`).
 pub struct Response<'a> {
     pub b: &'a [f64],
     pub f: &'a [f64],
     pub delay: usize,
     pub input: Option<&'a str>,
+    pub band_fit: Option<f64>,
 }
 
 /// Model points of a Bode figure without an estimate (its frequency grid otherwise).
 const POINTS_WITHOUT_ESTIMATE: usize = 257;
 
 /// Bode magnitude (dB) and phase (deg) of one pick against the Welch estimate, with the fit band
-/// shaded and the coherence below (paper Figs. 11 and 13); without an estimate (`est` None: a
-/// model of several inputs, which has no per-input estimate yet) the model's response alone.
+/// shaded and the coherence below (paper Figs. 11 and 13); without an estimate (`est` None: the
+/// record's spectral estimate failed) the model's response alone. For one input of several
+/// (`response.input`) the estimate is that input's `H_i = (P^-1 s)_i` and the coherence the
+/// multiple coherence of all inputs ([`crate::spectral::estimate_inputs`], METHOD.md 19).
 /// `gain_band`, when given, maps a normalised frequency w (rad/sample) to the model's |G| and
 /// its standard deviation (the robust covariance through the gradient of G, METHOD.md 10): the
 /// figure draws |G| +/- 2 std.
@@ -39,7 +43,6 @@ pub fn bode_figure(
     gain_band: Option<&dyn Fn(f64) -> (f64, f64)>,
     file: &str,
 ) -> std::result::Result<Figure, String> {
-    let m = &pick.model;
     let bins = est.map_or(POINTS_WITHOUT_ESTIMATE, |e| e.freq_hz.len());
     let nyquist = 0.5 / ts;
     // Four model points per Welch bin; index 4 k is bin k.
@@ -110,6 +113,11 @@ pub fn bode_figure(
         _ => String::new(),
     };
     let from = response.input.map(|u| format!(" from input {u}")).unwrap_or_default();
+    // Several inputs: the input's column of the H1 estimate, and the inputs' multiple coherence.
+    let (estimate_name, coherence_name) = match response.input {
+        Some(u) => (format!("Welch estimate H = P⁻¹ s, input {u}"), "multiple coherence"),
+        None => ("Welch estimate S_yu/S_uu".to_string(), "coherence"),
+    };
     let title_text = match est {
         Some(_) => {
             format!("Frequency response of {}{from} against the Welch estimate (cf. paper Figs. 11, 13)", pick.label())
@@ -128,7 +136,7 @@ pub fn bode_figure(
         let panels = [
             (&mag_area, mlo, mhi, "|G| [dB, output unit per input unit]", nice_ticks(mlo, mhi, 7), 20),
             (&phase_area, plo, phi, "phase [deg]", phase_ticks(plo, phi), if last == 1 { 46 } else { 20 }),
-            (&coh_area, 0.0, 1.05, "coherence", vec![0.0, 0.5, 1.0], 46),
+            (&coh_area, 0.0, 1.05, coherence_name, vec![0.0, 0.5, 1.0], 46),
         ];
         for (i, (area, lo, hi, desc, ticks, xl)) in panels.into_iter().enumerate().take(last + 1) {
             let mut chart = ChartBuilder::on(area)
@@ -188,7 +196,7 @@ pub fn bode_figure(
         if let Some(est) = est {
             entries.push((
                 Mark::Dot(MEASURED),
-                format!("Welch estimate S_yu/S_uu ({}-sample Hann segments){cleaned}", est.segment),
+                format!("{estimate_name} ({}-sample Hann segments){cleaned}", est.segment),
             ));
         }
         if !confidence.is_empty() {
@@ -207,22 +215,30 @@ pub fn bode_figure(
         let caption = format!(
             "Magnitude and phase of {}{from}, that input's filter q^-d B/F alone; the thin light lines are |G| ± 2 \
              standard deviations (its block of the robust parameter covariance through the gradient of G, METHOD.md \
-             10). A model of several inputs has no per-input spectral estimate of the record yet, so no measured \
-             response is drawn.",
+             10). No spectral estimate of the record could be made, so no measured response is drawn.",
             pick.label()
         );
         return Ok(Figure { file: file.into(), alt: title_text, caption, svg });
     }
+    let several = match response.input {
+        Some(u) => format!(
+            "The record has several inputs: the dots are input {u}'s column of H = P⁻¹ s, P the inputs' cross-spectral \
+             matrix and s their cross-spectra with the output, and the coherence is the multiple coherence, the share \
+             of the output's power all inputs explain together (METHOD.md 19). "
+        ),
+        None => String::new(),
+    };
     let caption = format!(
         "Magnitude and phase of {} (line) and the nonparametric Welch estimate of the estimation record \
          (dots; robust by default: samples that a robust prediction filter misses by more than 3 robust \
          standard deviations are replaced by its prediction first, METHOD.md 11); the thin light lines are |G| ± 2 \
          standard deviations of the model (its robust parameter covariance through the gradient of G, METHOD.md 10); \
          with the magnitude-squared coherence below: where it is low the estimate itself is \
-         unreliable. {}The estimate's phase is drawn within ±180° of the model's. fit_band = {}.",
+         unreliable. {several}{}The estimate's phase is drawn within ±180° of the model's. {} = {}.",
         pick.label(),
         band_text.map(|t| format!("Shaded: the band {t} of fit_band. ")).unwrap_or_default(),
-        m.fit.fit_band.map(|v| format!("{v:.2} %")).unwrap_or("n/a (no band)".into()),
+        if response.input.is_some() { "This input's band fit" } else { "fit_band" },
+        response.band_fit.map(|v| format!("{v:.2} %")).unwrap_or("n/a (no band)".into()),
     );
     Ok(Figure { file: file.into(), alt: title_text, caption, svg })
 }

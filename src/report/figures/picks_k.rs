@@ -16,12 +16,23 @@ struct KPicks {
 }
 
 /// The M1- and M2-style pick if the grid had only one k, for every k: the orders and the fit.
+/// A model of several inputs has one such figure per input (`input`: its index and name): the
+/// rules applied to every row of each k as for one input, the orders drawn those of that input.
 pub fn picks_by_k_figure(
     rows: &[CellRow],
     ks: &[f64],
     selection: &Selection,
+    input: Option<(usize, &str)>,
     file: &str,
 ) -> std::result::Result<Figure, String> {
+    // The orders drawn: the model's (one input) or input i's (several).
+    let orders_of = |c: &Candidate| match input {
+        None => (c.key.nb as f64, c.key.nf as f64),
+        Some((i, _)) => {
+            let o = c.key.structure().inputs()[i];
+            (o.nb as f64, o.nf as f64)
+        }
+    };
     let settings = reduce::SelectionSettings {
         min_tolerance: selection.min_tolerance,
         fit_tolerance: selection.fit_tolerance,
@@ -49,11 +60,12 @@ pub fn picks_by_k_figure(
         (klo, khi) = (mid - 0.3, mid + 0.3);
     }
     let orders: Vec<f64> =
-        per_k.iter().flat_map(|p| p.m1.iter().chain(&p.m2).flat_map(|c| [c.key.nb as f64, c.key.nf as f64])).collect();
+        per_k.iter().flat_map(|p| p.m1.iter().chain(&p.m2).flat_map(|c| <[f64; 2]>::from(orders_of(c)))).collect();
     let (olo, ohi) = padded_range(orders.iter().copied(), 0.1).unwrap_or((0.0, 10.0));
     let fits: Vec<f64> = per_k.iter().flat_map(|p| p.m1.iter().chain(&p.m2).map(|c| c.score).chain(p.best)).collect();
     let (flo, fhi) = padded_range(fits.iter().copied(), 0.1).unwrap_or((0.0, 100.0));
-    let title_text = "How the best model moves with k (the pick rules applied to each k alone)".to_string();
+    let of_input = input.map(|(_, name)| format!(", input {name}'s orders")).unwrap_or_default();
+    let title_text = format!("How the best model moves with k (the pick rules applied to each k alone){of_input}");
     let svg = render((1000, 640), |root| {
         let body = title(root, &title_text, 17.0)?;
         let (top, rest) = body.split_vertically(300);
@@ -76,7 +88,10 @@ pub fn picks_by_k_figure(
             .draw()?;
         for (which, colour, width, dashed) in [(0, M1_COLOUR, 3, false), (1, M2_COLOUR, 2, true)] {
             let of = |p: &KPicks| {
-                if which == 0 { p.m1.as_ref() } else { p.m2.as_ref() }.map(|c| (p.x, c.key.nb as f64, c.key.nf as f64))
+                if which == 0 { p.m1.as_ref() } else { p.m2.as_ref() }.map(|c| {
+                    let (nb, nf) = orders_of(c);
+                    (p.x, nb, nf)
+                })
             };
             let nb: Vec<(f64, f64)> = per_k.iter().filter_map(of).map(|(x, nb, _)| (x, nb)).collect();
             let nf: Vec<(f64, f64)> = per_k.iter().filter_map(of).map(|(x, _, nf)| (x, nf)).collect();
@@ -139,8 +154,14 @@ pub fn picks_by_k_figure(
         legend(&foot, 80, 4, 900, &entries, 13.0)?;
         Ok(())
     })?;
+    let whose = match input {
+        Some((_, name)) => {
+            format!("input {name}'s orders nB and nF (circles, squares; the other inputs' in their own figures)")
+        }
+        None => "orders nB (circles) and nF (squares)".to_string(),
+    };
     let caption = format!(
-        "Top: orders nB (circles) and nF (squares) of the model the M1 rule (red) and the M2 rule (orange, \
+        "Top: {whose} of the model the M1 rule (red) and the M2 rule (orange, \
          dashed) would pick if the grid had only that k. Bottom: that model's {fit_name}, and the best \
          {fit_name} of any cell at that k (grey); the thin dashed verticals mark the k of the overall picks. \
          A stable choice keeps its orders over a range of k."
