@@ -24,14 +24,21 @@ pub(super) fn bode_section(s: &Review, m1: Option<Picked>, m2: Option<Picked>) -
     if s.job.m > 1 {
         // One estimate per input, H_i = (P^-1 s)_i (METHOD.md 19), drawn on that input's figure.
         let est = &s.est;
-        let ests =
-            match crate::spectral::estimate_inputs(&est.u, s.job.m, &est.y, &est.seams, s.ts(), s.job.job.spectrum) {
-                Ok(e) => Some(e),
-                Err(e) => {
-                    notes.push(format!("No spectral estimate of the estimation record: {e}"));
-                    None
-                }
-            };
+        let ests = match crate::spectral::estimate_inputs(
+            &est.u,
+            s.job.m,
+            &est.y,
+            &est.seams,
+            &est.missing,
+            s.ts(),
+            s.job.job.spectrum,
+        ) {
+            Ok(e) => Some(e),
+            Err(e) => {
+                notes.push(format!("No spectral estimate of the estimation record: {e}"));
+                None
+            }
+        };
         for p in &picks {
             let structure = p.model.key.structure();
             let (b, f) = (structure.split_b(&p.model.fit.b), structure.split_f(&p.model.fit.f));
