@@ -81,14 +81,15 @@ fn non_numeric() {
 }
 
 #[test]
-fn nan_and_infinity() {
-    csv_err("nan.csv", "u,y\n1,2\n1,NaN\n", "line 3, column 'y': NaN is not allowed");
+fn nan_and_empty_are_missing_and_infinity_an_error() {
+    // A missing output is kept and listed (METHOD.md 21.1); tests/gaps_data.rs has the rest.
+    for (name, text) in [("nan.csv", "u,y\n1,2\n1,NaN\n"), ("hole.csv", "u,y\n1,2\n1, \n")] {
+        let (_dir, p) = csv(name, text);
+        let r = read_record(&p, "u", "y").unwrap();
+        assert_eq!((r.len(), r.missing.clone()), (2, vec![1]));
+        assert!(r.y[1].is_nan());
+    }
     csv_err("inf.csv", "u,y\n1,2\n1,2\ninf,2\n", "line 4, column 'u': infinite value");
-}
-
-#[test]
-fn empty_value() {
-    csv_err("hole.csv", "u,y\n1,2\n1, \n", "line 3, column 'y': empty value");
 }
 
 #[test]
@@ -181,7 +182,8 @@ fn parquet_null_value() {
     let mut y: Vec<Option<f64>> = (0..20).map(|i| Some(i as f64)).collect();
     y[11] = None;
     write_parquet(&p, vec![Column::new("u".into(), vec![1.0; 20]), Column::new("y".into(), y)]);
-    err_uy(&p, "row 12, column 'y': missing value (null)");
+    // A null is a missing sample (METHOD.md 21.1).
+    assert_eq!(read_record(&p, "u", "y").unwrap().missing, vec![11]);
 }
 
 #[test]
@@ -200,7 +202,7 @@ fn parquet_nan_and_infinity() {
         &p,
         vec![Column::new("u".into(), vec![1.0, 2.0, 3.0]), Column::new("y".into(), vec![1.0, 2.0, f64::NAN])],
     );
-    err_uy(&p, "row 3, column 'y': NaN is not allowed");
+    assert_eq!(read_record(&p, "u", "y").unwrap().missing, vec![2]);
     let p = dir.path().join("inf.parquet");
     write_parquet(
         &p,

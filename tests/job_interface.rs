@@ -107,8 +107,10 @@ fn fixtures() -> Vec<Value> {
     vec![
         json!({
             "name": "schema",
-            "data": {"path": "est.csv", "u": "u", "y": 2, "ts": 0.001, "delimiter": ",", "header": "auto", "rows": [1, 400]},
-            "validation": {"path": "est.csv", "u": 1, "y": "y", "ts": 0.001, "delimiter": ",", "header": true, "rows": [401, 800]},
+            "data": {"path": "est.csv", "u": "u", "y": 2, "ts": 0.001, "delimiter": ",", "header": "auto", "rows": [1, 400],
+                "missing": ["NA", -999], "interpolate_inputs": 2},
+            "validation": {"path": "est.csv", "u": 1, "y": "y", "ts": 0.001, "delimiter": ",", "header": true, "rows": [401, 800],
+                "missing": ["n/a"], "interpolate_inputs": 1},
             "offset": "mean",
             "initial_state": "zero",
             "spectrum": "welch",

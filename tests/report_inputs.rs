@@ -82,7 +82,7 @@ fn each_inputs_bode_figure_draws_its_own_measured_response_and_the_picks_move_wi
     let selection: Value = serde_json::from_str(&std::fs::read_to_string(out.join("selection.json")).unwrap()).unwrap();
 
     // The estimate the figures should draw: one per input, the same usable bins for both.
-    let ests = spectral::estimate_inputs(&u, 2, &y, &[], TS, SpectrumMethod::Robust).unwrap();
+    let ests = spectral::estimate_inputs(&u, 2, &y, &[], &[], TS, SpectrumMethod::Robust).unwrap();
     let usable = |e: &spectral::SpectralEstimate| {
         (0..e.freq_hz.len()).filter(|&k| e.re[k].is_finite() && e.im[k].is_finite() && e.freq_hz[k] > 0.0).count()
     };

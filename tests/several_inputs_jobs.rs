@@ -143,9 +143,9 @@ fn arrays_of_several_inputs_must_be_as_long_as_the_output() {
     let e = Record::from_input_arrays("<arrays>", vec![vec![1.0; 4], vec![1.0; 3]], y.clone()).unwrap_err();
     assert!(e.is_bad_input());
     assert_eq!(e.to_string(), "<arrays>: u2 has 3 samples and y 4: they must be equal");
-    let e = Record::from_input_arrays("<arrays>", vec![vec![1.0; 4], vec![1.0, f64::NAN, 0.0, 0.0]], y.clone())
+    let e = Record::from_input_arrays("<arrays>", vec![vec![1.0; 4], vec![1.0, f64::INFINITY, 0.0, 0.0]], y.clone())
         .unwrap_err();
-    assert_eq!(e.to_string(), "<arrays>: sample 1 of u2 is NaN, not a finite number");
+    assert_eq!(e.to_string(), "<arrays>: sample 1 of u2 is inf, not a finite number (NaN marks a missing sample)");
     // One input as before.
     let e = Record::from_arrays("<arrays>", vec![1.0; 3], y).unwrap_err();
     assert_eq!(e.to_string(), "<arrays>: u has 3 samples and y 4: they must be equal");

@@ -362,9 +362,15 @@ def fit(
     offset: str = "estimate",
     initial_state: str = "estimate",
     validation: Optional[tuple] = None,
+    interpolate_inputs: int = 0,
 ) -> Model:
     """Fit OE(nb, nf) with delay by least squares and then Huber's criterion at k: the same
     numbers as ``oesweep fit --json``. ``validation`` is a ``(u, y)`` pair that only judges.
+
+    NaN marks a missing sample, as a job's record has it (docs/METHOD.md 21.1): a missing
+    output is left out of the criterion; a missing input cuts the record into segments fitted
+    together as experiments, unless ``interpolate_inputs`` (a number of samples) lets gaps that
+    short be filled by linear interpolation. Infinite values raise ``DataError``.
 
     Several inputs: ``u`` a 2-D array (one column per input) or a list of 1-D arrays, and
     ``nb``, ``nf``, ``delay`` one number for every input or a list of one per input; the
@@ -377,7 +383,7 @@ def fit(
         val_u, val_y = _inputs("validation u", validation[0]), _f64("validation y", validation[1])
     text = _oesweep.fit(
         us, y, _per_input("nb", nb, m), _per_input("nf", nf, m), float(k), _per_input("delay", delay, m),
-        float(ts), offset, initial_state, val_u, val_y,
+        float(ts), offset, initial_state, val_u, val_y, int(interpolate_inputs),
     )
     report = json.loads(text)
     fields = {key: report[key] for key in report if key not in ("ls",)}
@@ -394,16 +400,21 @@ def read(
     rows: Optional[Sequence[int]] = None,
     delimiter: Optional[str] = None,
     header: Union[bool, str, None] = None,
+    missing: Optional[Sequence[Union[str, float]]] = None,
 ) -> tuple:
     """The input and output columns of a data file as ``(u, y)`` float64 arrays, read as a job
     file's record is (text with any delimiter and quoting, Parquet, MAT): ``u``, ``y`` a column
     name or a 1-based position, ``rows`` ``[first, last]`` (1-based, inclusive), ``delimiter``
     ``","``, ``";"``, ``"tab"`` or ``"whitespace"`` (default: sniffed), ``header`` ``True``,
     ``False`` or ``"auto"``. ``oesweep.fit(*oesweep.read("run.csv", rows=[1, 5000]), ...)``.
-    ``u`` a list of columns reads several inputs: ``u`` is then an N x m array."""
+    ``u`` a list of columns reads several inputs: ``u`` is then an N x m array. Every row of
+    the file is returned; a missing sample (an empty field, ``NaN``, or one of the markers
+    ``missing``, such as ``["NA", -999]``) is NaN, which ``fit`` reads as a job reads the file."""
     spec: Dict[str, Any] = {"path": os.fspath(path), "u": u, "y": y}
     if rows is not None:
         spec["rows"] = list(rows)
+    if missing is not None:
+        spec["missing"] = list(missing)
     for key, value in (("delimiter", delimiter), ("header", header)):
         if value is not None:
             spec[key] = value

@@ -32,6 +32,7 @@ def fit(
     initial_state: str,
     val_u: Optional[list[_Floats]] = None,
     val_y: Optional[_Floats] = None,
+    interpolate_inputs: int = 0,
 ) -> str: ...
 def run(
     job: Union[str, PathLike[str]],

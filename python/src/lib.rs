@@ -3,7 +3,7 @@
 //! layer (`oesweep/`) owns the Python types and the binding stays independent of numpy's and
 //! polars' versions. Every call releases the GIL while the engine works.
 
-use oesweep::data::{Offset, Record};
+use oesweep::data::{Offset, Raw, Record};
 use oesweep::engine::{self, FitRequest, RunEnd, RunOptions, Watch};
 use oesweep::estimate::InitialState;
 use oesweep::oe::{MAX_INPUTS, Orders, Structure};
@@ -63,10 +63,27 @@ fn parse<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> PyResult<T> {
         .map_err(|e| JobError::new_err(format!("{what} {v:?}: {e}")))
 }
 
+/// A record of float64 arrays shaped as a job's record of the model `structure` (METHOD.md
+/// 21.1): NaN is a missing sample, input gaps of at most `interpolate_inputs` samples filled,
+/// the other input gaps cutting the record into segments (those shorter than the model needs
+/// left out), missing outputs kept for the fit to leave out.
+fn record_of_arrays(
+    label: &str,
+    inputs: Vec<Vec<f64>>,
+    y: Vec<f64>,
+    interpolate_inputs: usize,
+    structure: &Structure,
+) -> PyResult<Record> {
+    let raw = Raw::from_arrays(label, inputs, y).map_err(to_py)?;
+    let shortest = oesweep::data::min_samples_of(structure);
+    oesweep::data::gaps::shape(raw, interpolate_inputs, shortest).map(|(rec, _)| rec).map_err(to_py)
+}
+
 /// One model (`oesweep fit --json`'s report as JSON text) from float64 arrays: `u` one array
-/// per input, `nb`, `nf`, `delay` one entry per input (the Python side broadcasts them).
+/// per input, `nb`, `nf`, `delay` one entry per input (the Python side broadcasts them); NaN
+/// marks a missing sample.
 #[pyfunction]
-#[pyo3(signature = (u, y, nb, nf, k, delay, ts, offset, initial_state, val_u=None, val_y=None))]
+#[pyo3(signature = (u, y, nb, nf, k, delay, ts, offset, initial_state, val_u=None, val_y=None, interpolate_inputs=0))]
 #[allow(clippy::too_many_arguments)]
 fn fit(
     py: Python<'_>,
@@ -81,20 +98,8 @@ fn fit(
     initial_state: &str,
     val_u: Option<Vec<Bound<'_, PyAny>>>,
     val_y: Option<&Bound<'_, PyAny>>,
+    interpolate_inputs: usize,
 ) -> PyResult<String> {
-    let est = Record::from_input_arrays("<u, y arrays>", input_floats("u", &u)?, floats("y", y)?).map_err(to_py)?;
-    let val = match (val_u, val_y) {
-        (Some(vu), Some(vy)) => Some(
-            Record::from_input_arrays(
-                "<validation arrays>",
-                input_floats("validation u", &vu)?,
-                floats("validation y", vy)?,
-            )
-            .map_err(to_py)?,
-        ),
-        (None, None) => None,
-        _ => return Err(DataError::new_err("validation needs both u and y")),
-    };
     if nb.len() != u.len() || nf.len() != u.len() || delay.len() != u.len() {
         return Err(JobError::new_err(format!(
             "{} inputs, but nb, nf and delay have {}, {} and {} entries: give one per input",
@@ -108,6 +113,22 @@ fn fit(
     let structure = Structure::new(&orders).ok_or_else(|| {
         JobError::new_err(format!("{} inputs: between 1 and {MAX_INPUTS} are supported", orders.len()))
     })?;
+    let max = oesweep::data::gaps::MAX_INTERPOLATE;
+    if interpolate_inputs > max {
+        return Err(JobError::new_err(format!("interpolate_inputs {interpolate_inputs}: at most {max} samples")));
+    }
+    let est = record_of_arrays("<u, y arrays>", input_floats("u", &u)?, floats("y", y)?, interpolate_inputs, &structure)?;
+    let val = match (val_u, val_y) {
+        (Some(vu), Some(vy)) => Some(record_of_arrays(
+            "<validation arrays>",
+            input_floats("validation u", &vu)?,
+            floats("validation y", vy)?,
+            interpolate_inputs,
+            &structure,
+        )?),
+        (None, None) => None,
+        _ => return Err(DataError::new_err("validation needs both u and y")),
+    };
     let req = FitRequest::for_arrays(
         structure,
         k,
@@ -295,7 +316,8 @@ fn to_continuous(py: Python<'_>, doc: &str, method: &str) -> PyResult<String> {
 }
 
 /// The u and y columns of a data file named as a job file names a record (JSON text of its
-/// fields), as little-endian float64 bytes.
+/// fields), as little-endian float64 bytes: the rows as the file has them, a missing sample
+/// (empty, NaN, a marker of the record's `missing`) NaN.
 #[pyfunction]
 fn read(py: Python<'_>, spec: &str) -> PyResult<(Py<PyBytes>, Py<PyBytes>)> {
     let (_, u, y) = read_inputs(py, spec)?;
@@ -309,7 +331,7 @@ fn read(py: Python<'_>, spec: &str) -> PyResult<(Py<PyBytes>, Py<PyBytes>)> {
 fn read_inputs(py: Python<'_>, spec: &str) -> PyResult<(Vec<String>, Py<PyBytes>, Py<PyBytes>)> {
     let spec: oesweep::job::DataSpec =
         serde_json::from_str(spec).map_err(|e| JobError::new_err(format!("record: {e}")))?;
-    let rec = py.detach(|| oesweep::job::read_record(&spec)).map_err(to_py)?;
+    let rec = py.detach(|| oesweep::job::read_raw(&spec)).map_err(to_py)?;
     let bytes = |v: &[f64]| -> Py<PyBytes> {
         let raw: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
         PyBytes::new(py, &raw).unbind()

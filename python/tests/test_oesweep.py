@@ -324,6 +324,35 @@ def test_read_takes_a_file_as_a_job_names_a_record(tmp_path):
         oesweep.read(tmp_path / "missing.csv")
 
 
+def test_nan_in_the_arrays_is_a_missing_sample_as_in_a_file(tmp_path):
+    # docs/METHOD.md 21.1: a file with an input gap and missing outputs (a marker and empty
+    # fields) read with `read` gives every row, NaN where a sample is missing, and `fit` of those
+    # arrays is `oesweep fit` of the file, bit for bit.
+    u, y = record(1500)
+    u[700:703] = np.nan
+    y[[40, 41, 900]] = np.nan
+    path = tmp_path / "gaps.csv"
+    with open(path, "w") as fh:
+        fh.write("u,y\n")
+        for i, (a, b) in enumerate(zip(u, y)):
+            fa = "" if np.isnan(a) else repr(float(a))
+            fb = ("NA" if i == 900 else "") if np.isnan(b) else repr(float(b))
+            fh.write(f"{fa},{fb}\n")
+    ru, ry = oesweep.read(path, missing=["NA"])
+    assert len(ru) == 1500 and np.isnan(ru[700:703]).all() and np.isnan(ry[[40, 41, 900]]).all()
+    with pytest.raises(oesweep.DataError, match="'NA' is not a number"):
+        oesweep.read(path)
+    m = oesweep.fit(ru, ry, 2, 2, 0.5, ts=0.01)
+    cleaned = tmp_path / "cleaned.csv"
+    write_csv(cleaned, u, y)  # NaN written as "nan"
+    o = cli("fit", "--data", str(cleaned), "--nb", "2", "--nf", "2", "--k", "0.5", "--ts", "0.01", "--json")
+    assert o.returncode == 0, o.stderr
+    want = json.loads(o.stdout)
+    assert m.b == want["b"] and m.f == want["f"] and m.criterion == want["criterion"]
+    with pytest.raises(oesweep.DataError, match="inf"):
+        oesweep.fit(np.where(np.isnan(u), np.inf, u), y, 2, 2, 0.5, ts=0.01)
+
+
 def test_unknown_model_attributes_raise_and_absent_fields_read_as_none():
     u, y = record()
     m = oesweep.fit(u, y, 2, 2, 0.5, ts=0.01)

@@ -290,6 +290,15 @@ pub struct SimulateArgs {
     /// Spike magnitude range MIN,MAX (random sign).
     #[arg(long, value_parser = parse_band, default_value = "5,10")]
     pub outlier_range: (f64, f64),
+    /// Share of the outputs left missing (empty fields; records with gaps, METHOD.md 21.1).
+    #[arg(long, value_name = "P", default_value_t = 0.0)]
+    pub missing: f64,
+    /// Share of the rows whose input is left missing (one input per gap, chosen at random).
+    #[arg(long, value_name = "P", default_value_t = 0.0)]
+    pub missing_inputs: f64,
+    /// Length in samples of every gap of --missing and --missing-inputs.
+    #[arg(long, value_name = "L", default_value_t = 1)]
+    pub missing_burst: usize,
 }
 
 fn parse_band(s: &str) -> std::result::Result<(f64, f64), String> {

@@ -26,7 +26,8 @@ use crate::estimate::SolverOptions;
 use crate::shard;
 use crate::simulate;
 use print::{
-    describe_grid, print_fit_summary, print_layout, print_pick_bootstraps, print_picks, print_report, print_rules,
+    describe_grid, print_fit_summary, print_gaps, print_layout, print_pick_bootstraps, print_picks, print_report,
+    print_rules,
 };
 
 /// The whole command line of a process that is the command's own (the `oesweep` binaries):
@@ -230,7 +231,8 @@ fn run_simulate(a: &SimulateArgs) -> Result<u8> {
             max: a.outlier_range.1,
         }),
     };
-    let n = engine::simulate(&a.system, &a.out, &opts)?;
+    let gaps = simulate::GapOptions { outputs: a.missing, inputs: a.missing_inputs, burst: a.missing_burst };
+    let n = simulate::simulate_csv(&a.system, &a.out, &opts, &gaps)?;
     eprintln!("wrote {} ({n} samples)", a.out.display());
     Ok(0)
 }
@@ -259,6 +261,7 @@ fn run_plan(a: &PlanArgs) -> Result<u8> {
             rec.y_name
         );
     }
+    print_gaps(Some(&p.gaps));
     outln!("grid       {}", describe_grid(&p));
     match &p.search {
         crate::search::Search::Product => {
@@ -430,6 +433,7 @@ fn run_job(a: &RunArgs) -> Result<u8> {
                 );
             }
             outln!("wall time {:.2} s, {rate:.1} cells/s", o.seconds);
+            print_gaps(selection.gaps.as_ref());
             print_picks(selection);
             print_rules(selection);
             print_pick_bootstraps(selection);
@@ -508,6 +512,7 @@ fn run_merge(a: &MergeArgs) -> Result<u8> {
                 m.ls,
                 plan.pairs.len()
             );
+            print_gaps(selection.gaps.as_ref());
             print_picks(selection);
             print_rules(selection);
             print_pick_bootstraps(selection);

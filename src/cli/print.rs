@@ -10,6 +10,16 @@ pub(super) fn opt_pct(v: Option<f64>) -> String {
     v.map_or_else(|| "-".to_string(), |x| format!("{x:.2} %"))
 }
 
+/// What was missing in the records and what became of it (selection.json's `gaps`, METHOD.md
+/// 21.1): a line per record that missed anything, none for complete records.
+pub(super) fn print_gaps(gaps: Option<&crate::data::RecordGaps>) {
+    for (name, g) in gaps.into_iter().flat_map(|g| [("data", &g.data), ("validation", &g.validation)]) {
+        if let Some(g) = g {
+            outln!("gaps       {name}: {}", g.describe());
+        }
+    }
+}
+
 pub(super) fn print_fit_summary(r: &FitReport) {
     let h = &r.huber;
     let l = &r.ls;

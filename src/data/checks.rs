@@ -42,14 +42,19 @@ pub fn check_for_model(rec: &Record, nb: usize, nf: usize, delay: usize) -> Resu
 /// collinear ([`check_inputs_distinct`]).
 pub fn check_for_structure(rec: &Record, s: &Structure) -> Result<()> {
     debug_assert_eq!(rec.u.len(), rec.inputs() * rec.len());
-    let n = rec.len();
+    // Only the observed outputs identify anything (METHOD.md 21.1).
+    let n = rec.len() - rec.missing.len();
     let need = min_samples_of(s);
     if n < need {
         let model = match s.single() {
             Some(o) => format!("OE(nb={}, nf={}) with delay {}", o.nb, o.nf, o.delay),
             None => s.label(),
         };
-        return Err(input_error(&rec.path, format!("{n} samples are too few for {model}: need at least {need}")));
+        let what = match rec.missing.len() {
+            0 => format!("{n} samples"),
+            k => format!("{n} observed outputs ({k} of {} missing)", rec.len()),
+        };
+        return Err(input_error(&rec.path, format!("{what} are too few for {model}: need at least {need}")));
     }
     for (i, name) in rec.u_names.iter().enumerate() {
         if let Some(v) = constant_value(rec.input(i)) {
@@ -59,7 +64,8 @@ pub fn check_for_structure(rec: &Record, s: &Structure) -> Result<()> {
             ));
         }
     }
-    if let Some(v) = constant_value(&rec.y) {
+    let observed: Vec<f64> = rec.y.iter().copied().filter(|v| !v.is_nan()).collect();
+    if let Some(v) = constant_value(&observed) {
         return Err(input_error(
             &rec.path,
             format!("output column '{}' is constant (value {v}): there is nothing to fit", rec.y_name),

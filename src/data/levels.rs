@@ -55,8 +55,8 @@ impl Levels {
         let (u0, y0) = match mode {
             Offset::None => (Vec::new(), 0.0),
             Offset::Estimate => (inputs.map(mean).collect(), 0.0),
-            Offset::Mean => (inputs.map(mean).collect(), mean(&est.y)),
-            Offset::Median => (inputs.map(median).collect(), median(&est.y)),
+            Offset::Mean => (inputs.map(mean).collect(), mean(&observed(est))),
+            Offset::Median => (inputs.map(median).collect(), median(&observed(est))),
         };
         Levels { mode, u0, y0 }
     }
@@ -106,8 +106,9 @@ pub fn offset_warning(mode: Offset, est: &Record) -> Option<String> {
     if mode != Offset::None {
         return None;
     }
-    let m = mean(&est.y);
-    let sd = (est.y.iter().map(|v| (v - m).powi(2)).sum::<f64>() / est.y.len() as f64).sqrt();
+    let y = observed(est);
+    let m = mean(&y);
+    let sd = (y.iter().map(|v| (v - m).powi(2)).sum::<f64>() / y.len() as f64).sqrt();
     (m.abs() > OFFSET_WARNING_RATIO * sd).then(|| {
         format!(
             "offset \"none\": the output's mean {m:.6} is {:.1} times its standard deviation {sd:.6}; \
@@ -129,6 +130,12 @@ pub(crate) fn one_or_list<S: serde::Serializer>(u0: &[f64], s: S) -> Result<S::O
 
 /// Mean / standard deviation above which `none` gets a warning.
 const OFFSET_WARNING_RATIO: f64 = 1.0;
+
+/// The record's observed outputs (a missing one is NaN, METHOD.md 21.1): the output levels
+/// are theirs.
+fn observed(rec: &Record) -> Vec<f64> {
+    rec.y.iter().copied().filter(|v| !v.is_nan()).collect()
+}
 
 fn mean(x: &[f64]) -> f64 {
     x.iter().sum::<f64>() / x.len() as f64

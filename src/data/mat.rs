@@ -7,7 +7,8 @@ use std::path::Path;
 
 use matfile::{MatFile, NumericData};
 
-use super::{ColumnRef, Columns, check_finite, guarded, input_error, list_columns, row_range};
+use super::gaps::Markers;
+use super::{ColumnRef, Columns, guarded, input_error, list_columns, row_range, sample};
 use crate::error::Result;
 
 /// The HDF5 signature, at byte 512 of a v7.3 MAT-file (after its 512-byte user block).
@@ -38,7 +39,12 @@ pub(super) fn column_names(path: &Path) -> Result<Vec<String>> {
     Ok(open(path)?.arrays().iter().map(|a| a.name().to_string()).collect())
 }
 
-pub(super) fn read_columns(path: &Path, cols: &[ColumnRef], rows: Option<[usize; 2]>) -> Result<Columns> {
+pub(super) fn read_columns(
+    path: &Path,
+    cols: &[ColumnRef],
+    rows: Option<[usize; 2]>,
+    markers: &Markers,
+) -> Result<Columns> {
     let file = open(path)?;
     let mut names = Vec::with_capacity(cols.len());
     let mut values: Vec<Vec<f64>> = Vec::with_capacity(cols.len());
@@ -88,7 +94,7 @@ pub(super) fn read_columns(path: &Path, cols: &[ColumnRef], rows: Option<[usize;
         let range = row_range(path, rows, n)?;
         let mut v = Vec::with_capacity(range.len());
         for i in range {
-            v.push(check_finite(path, &format!("row {}", i + 1), name, all[i])?);
+            v.push(sample(path, &format!("row {}", i + 1), name, all[i], markers)?);
         }
         names.push(name.clone());
         values.push(v);

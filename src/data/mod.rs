@@ -14,20 +14,24 @@
 //!   mark, CRLF line ends, a trailing delimiter on every line and blank lines at the end.
 //!
 //! Columns are chosen by name or by 1-based position ([`ColumnRef`]). Columns that are not
-//! selected are not looked at (they may be empty, text or have missing values); the selected
-//! ones must hold a finite number in every row of the range.
+//! selected are not looked at (they may be empty, text or have missing values); in the selected
+//! ones every value is a finite number or a missing sample (NaN, an empty field, a null, a
+//! declared marker), and a record with missing samples takes its shape in [`gaps`] (METHOD.md
+//! 21.1).
 //!
 //! Every problem is one [`Error::Data`] naming the file and, where it applies, the line (text,
 //! 1-based, counting the header) or row (Parquet and MAT, 1-based data row) and the column: the
 //! user should be able to open the file at the right place from the message alone.
 
 mod checks;
+pub mod gaps;
 pub mod levels;
 mod mat;
 pub(crate) mod parquet;
 mod text;
 
 pub use checks::{check_for_model, check_for_structure, check_inputs_distinct, min_samples, min_samples_of};
+pub use gaps::{Gaps, Marker, Raw, RecordGaps, read_record_gaps};
 pub use levels::{Levels, Offset};
 
 use std::cell::Cell;
@@ -105,34 +109,19 @@ pub fn observed_ranges(n: usize, seams: &[usize], missing: &[usize]) -> Vec<std:
 
 impl Record {
     /// A record from samples in memory (the Python package's arrays), `label` standing for the
-    /// file in messages: the same rules as a file's numbers (equal lengths, every sample finite).
+    /// file in messages: the same rules as a file's numbers (equal lengths, every sample finite
+    /// or NaN, a missing sample, [`gaps`]).
     pub fn from_arrays(label: &str, u: Vec<f64>, y: Vec<f64>) -> Result<Record> {
         Record::from_input_arrays(label, vec![u], y)
     }
 
     /// [`Record::from_arrays`] of several inputs, one array each, named `u1`, `u2`, ... in
-    /// messages (one input: `u`): every input as long as `y`.
+    /// messages (one input: `u`): every input as long as `y`. Shaped as a record read without a
+    /// grid ([`gaps::SHORTEST_SEGMENT`]); [`Raw::from_arrays`] and [`gaps::shape`] shape it for
+    /// a model.
     pub fn from_input_arrays(label: &str, inputs: Vec<Vec<f64>>, y: Vec<f64>) -> Result<Record> {
-        let path = PathBuf::from(label);
-        if inputs.is_empty() {
-            return Err(input_error(&path, "no input array: give at least one"));
-        }
-        let u_names: Vec<String> =
-            if inputs.len() == 1 { vec!["u".into()] } else { (1..=inputs.len()).map(|i| format!("u{i}")).collect() };
-        for (name, x) in u_names.iter().zip(&inputs) {
-            if x.len() != y.len() {
-                return Err(input_error(
-                    &path,
-                    format!("{name} has {} samples and y {}: they must be equal", x.len(), y.len()),
-                ));
-            }
-        }
-        for (name, x) in u_names.iter().map(String::as_str).zip(&inputs).chain([("y", &y)]) {
-            if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-                return Err(input_error(&path, format!("sample {i} of {name} is {}, not a finite number", x[i])));
-            }
-        }
-        Ok(Record { path, u: inputs.concat(), y, u_names, y_name: "y".into(), seams: Vec::new(), missing: Vec::new() })
+        let raw = Raw::from_arrays(label, inputs, y)?;
+        gaps::shape(raw, 0, gaps::SHORTEST_SEGMENT).map(|(rec, _)| rec)
     }
 
     /// Several experiments as one record: the samples one after the other, with a seam where
@@ -332,6 +321,11 @@ pub struct ReadOptions {
     /// Data rows `[first, last]`, 1-based and inclusive (the header is not a row); `None` =
     /// all rows.
     pub rows: Option<[usize; 2]>,
+    /// Markers of a missing sample besides NaN and empty fields ([`Marker`]).
+    pub missing: Vec<Marker>,
+    /// Input gaps of at most this many samples filled by linear interpolation ([`gaps::shape`]);
+    /// 0: none.
+    pub interpolate_inputs: usize,
 }
 
 /// The rule for a row range, shared by the job file and `oesweep fit` (the caller names the
@@ -382,11 +376,18 @@ pub fn read_record_with(path: &Path, u: &ColumnRef, y: &ColumnRef, opts: &ReadOp
 }
 
 /// Reads the input columns `u` (one per input, in the model's order) and the output column `y`
-/// of a file, as `opts` says: one record, its inputs one after the other.
+/// of a file, as `opts` says: one record, its inputs one after the other, shaped as a record read
+/// without a grid ([`read_record_gaps`] with [`gaps::SHORTEST_SEGMENT`]).
+pub fn read_record_inputs(path: &Path, u: &[ColumnRef], y: &ColumnRef, opts: &ReadOptions) -> Result<Record> {
+    read_record_gaps(path, u, y, opts, gaps::SHORTEST_SEGMENT).map(|(rec, _)| rec)
+}
+
+/// The input columns `u` and the output column `y` of a file as `opts` says, every row of the
+/// range, a missing sample NaN ([`gaps`]).
 ///
 /// All checks of [`read_columns_with`] apply; in addition no column may be named twice, nor be
 /// both an input and the output (by its reference or by the column it resolves to).
-pub fn read_record_inputs(path: &Path, u: &[ColumnRef], y: &ColumnRef, opts: &ReadOptions) -> Result<Record> {
+pub fn read_raw(path: &Path, u: &[ColumnRef], y: &ColumnRef, opts: &ReadOptions) -> Result<Raw> {
     if u.is_empty() {
         return Err(input_error(path, "no input column: give at least one"));
     }
@@ -409,15 +410,7 @@ pub fn read_record_inputs(path: &Path, u: &[ColumnRef], y: &ColumnRef, opts: &Re
             return Err(input_error(path, format!("input column '{n}' is named twice (as {} and as {})", u[j], u[i])));
         }
     }
-    Ok(Record {
-        path: path.to_path_buf(),
-        u: values.concat(),
-        y,
-        u_names: names,
-        y_name,
-        seams: Vec::new(),
-        missing: Vec::new(),
-    })
+    Ok(Raw { path: path.to_path_buf(), u: values.concat(), y, u_names: names, y_name })
 }
 
 /// Reads the named numeric columns of a file, all rows, default dialect, in the order of
@@ -438,15 +431,17 @@ pub struct Columns {
 /// docs), in the order of `cols`, restricted to `opts.rows`.
 ///
 /// Fails with one [`Error::Data`] when the file cannot be read, a column is missing, the file
-/// has no data row, the row range reaches past the file, or any selected value is not a finite
-/// number.
+/// has no data row, the row range reaches past the file, or any selected value is neither a
+/// finite number nor a missing sample (which is NaN, [`gaps`]).
 pub fn read_columns_with(path: &Path, cols: &[ColumnRef], opts: &ReadOptions) -> Result<Columns> {
     if let Some(rows) = opts.rows {
         check_rows(rows).map_err(|m| input_error(path, format!("rows {m}")))?;
     }
     match Format::of(path) {
-        Format::Parquet => guarded(path, "Parquet", || parquet::read_columns(path, cols, opts.rows)),
-        Format::Mat => mat::read_columns(path, cols, opts.rows),
+        Format::Parquet => {
+            guarded(path, "Parquet", || parquet::read_columns(path, cols, opts.rows, &gaps::Markers::of(&opts.missing)))
+        }
+        Format::Mat => mat::read_columns(path, cols, opts.rows, &gaps::Markers::of(&opts.missing)),
         Format::Text => text::read_columns(path, cols, opts),
     }
 }
@@ -536,10 +531,11 @@ fn missing_column(path: &Path, name: &str, all: &[impl AsRef<str>]) -> Error {
     input_error(path, format!("no column '{name}' (columns: {})", list_columns(all)))
 }
 
-/// Validates one parsed value; `place` is "line 7" or "row 7".
-fn check_finite(path: &Path, place: &str, col: &str, v: f64) -> Result<f64> {
-    if v.is_nan() {
-        Err(input_error(path, format!("{place}, column '{col}': NaN is not allowed")))
+/// One value of a selected column: itself, NaN for a missing sample (NaN, a marker), or the
+/// error of an infinite value; `place` is "line 7" or "row 7".
+fn sample(path: &Path, place: &str, col: &str, v: f64, markers: &gaps::Markers) -> Result<f64> {
+    if v.is_nan() || markers.is_value(v) {
+        Ok(f64::NAN)
     } else if v.is_infinite() {
         Err(input_error(path, format!("{place}, column '{col}': infinite value")))
     } else {

@@ -6,7 +6,8 @@ use std::path::Path;
 
 use polars::prelude::{DataType, ParallelStrategy, ParquetReader, SerReader};
 
-use super::{ColumnRef, Columns, check_finite, input_error, resolve_columns, row_range};
+use super::gaps::Markers;
+use super::{ColumnRef, Columns, input_error, resolve_columns, row_range, sample};
 use crate::error::Result;
 
 fn open(path: &Path) -> Result<ParquetReader<File>> {
@@ -137,7 +138,12 @@ pub(super) fn column_names(path: &Path) -> Result<Vec<String>> {
     schema_names(path, &mut reader)
 }
 
-pub(super) fn read_columns(path: &Path, cols: &[ColumnRef], rows: Option<[usize; 2]>) -> Result<Columns> {
+pub(super) fn read_columns(
+    path: &Path,
+    cols: &[ColumnRef],
+    rows: Option<[usize; 2]>,
+    markers: &Markers,
+) -> Result<Columns> {
     let mut reader = open(path)?;
     let all = schema_names(path, &mut reader)?;
     let index = resolve_columns(path, cols, &all, all.len())?;
@@ -182,12 +188,8 @@ pub(super) fn read_columns(path: &Path, cols: &[ColumnRef], rows: Option<[usize;
         let mut v = Vec::with_capacity(range.len());
         for (i, x) in ca.iter().enumerate().skip(range.start).take(range.len()) {
             let row = i + 1;
-            match x {
-                Some(x) => v.push(check_finite(path, &format!("row {row}"), name, x)?),
-                None => {
-                    return Err(input_error(path, format!("row {row}, column '{name}': missing value (null)")));
-                }
-            }
+            // A null is a missing sample, as NaN is.
+            v.push(sample(path, &format!("row {row}"), name, x.unwrap_or(f64::NAN), markers)?);
         }
         values.push(v);
     }

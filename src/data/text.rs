@@ -14,14 +14,16 @@
 //!   that is not selected (empty, text or with missing values);
 //! - blank lines at the end are ignored; a blank line between data lines is an error (it
 //!   would silently shift the row numbers that row ranges refer to), and so is a line with
-//!   fewer fields than the width or with non-empty fields beyond it.
+//!   fewer fields than the width or with non-empty fields beyond it;
+//! - a selected field that is empty, `NaN` (any case) or one of the record's markers is a
+//!   missing sample, read as NaN ([`super::gaps`]); without a header, a first line that ends in
+//!   empty fields (its last samples missing) still counts them as columns.
 
 use std::borrow::Cow;
 use std::path::Path;
 
-use super::{
-    ColumnRef, Columns, Delimiter, Header, ReadOptions, check_finite, input_error, resolve_columns, row_range,
-};
+use super::gaps::Markers;
+use super::{ColumnRef, Columns, Delimiter, Header, ReadOptions, input_error, resolve_columns, row_range, sample};
 use crate::error::Result;
 
 /// Lines looked at to sniff the delimiter.
@@ -48,14 +50,19 @@ pub(super) fn read_columns(path: &Path, cols: &[ColumnRef], opts: &ReadOptions) 
                     ),
                 ));
             }
-            (Vec::new(), table.first_width)
+            (Vec::new(), table.first_len)
         }
     };
-    let index = resolve_columns(path, cols, &names, width)?;
+    // Fields that may be filled: the header's, or the whole first line's (trailing empty ones
+    // too: they may be missing samples of the first row).
+    let room = width;
+    let width = table.header.as_ref().map_or(table.first_width, |h| h.width);
+    let index = resolve_columns(path, cols, &names, room)?;
     let shown: Vec<String> =
         index.iter().map(|&i| names.get(i).cloned().unwrap_or_else(|| format!("column {}", i + 1))).collect();
     let against = if table.header.is_some() { "the header has" } else { "the first line has" };
     let wanted = |r: usize| opts.rows.is_none_or(|[a, b]| (a..=b).contains(&r));
+    let markers = Markers::of(&opts.missing);
 
     let mut values: Vec<Vec<f64>> = vec![Vec::new(); cols.len()];
     let mut rows = 0usize;
@@ -87,7 +94,7 @@ pub(super) fn read_columns(path: &Path, cols: &[ColumnRef], opts: &ReadOptions) 
             return Err(input_error(path, format!("line {b}: empty line")));
         }
         let fields = record.len();
-        let extra_filled = trimmed(&record).skip(width).any(|f| !f.is_empty());
+        let extra_filled = trimmed(&record).skip(room).any(|f| !f.is_empty());
         if fields < width || extra_filled {
             return Err(input_error(
                 path,
@@ -99,7 +106,9 @@ pub(super) fn read_columns(path: &Path, cols: &[ColumnRef], opts: &ReadOptions) 
             continue;
         }
         for (k, &j) in index.iter().enumerate() {
-            let v = parse_field(path, line, &shown[k], record[j].trim_ascii(), table.delimiter)?;
+            // A line may leave out trailing empty fields of the first line: missing samples.
+            let field = record.get(j).map_or(&b""[..], <[u8]>::trim_ascii);
+            let v = parse_field(path, line, &shown[k], field, table.delimiter, &markers)?;
             values[k].push(v);
         }
     }
@@ -137,8 +146,10 @@ struct Table<'a> {
     body: Cow<'a, str>,
     delimiter: Delimiter,
     header: Option<HeaderRow>,
-    /// Width of the first non-blank line (the table width without a header).
+    /// Width of the first non-blank line without its trailing empty fields (the least width of
+    /// a line without a header), and with them (the table width without a header).
     first_width: usize,
+    first_len: usize,
     /// Line number of the first data line.
     data_line: u64,
 }
@@ -155,7 +166,7 @@ impl<'a> Table<'a> {
             ),
             Delimiter::Byte(_) => Cow::Borrowed(text),
         };
-        let mut table = Table { body, delimiter, header: None, first_width: 0, data_line: 1 };
+        let mut table = Table { body, delimiter, header: None, first_width: 0, first_len: 0, data_line: 1 };
         let mut reader = table.reader();
         let mut lines = Lines::new(&table.body);
         let mut first = csv::ByteRecord::new();
@@ -170,8 +181,12 @@ impl<'a> Table<'a> {
         let line = lines.of(&first);
         let width = first.len() - trimmed(&first).rev().take_while(|f| f.is_empty()).count();
         table.first_width = width;
+        table.first_len = first.len();
         table.data_line = line;
-        let numeric = trimmed(&first).take(width).all(|f| parse_number(f).is_some());
+        // A line of numbers is data, missing samples (empty fields, declared markers) included.
+        let markers = Markers::of(&opts.missing);
+        let numeric =
+            trimmed(&first).take(width).all(|f| f.is_empty() || parse_number(f).is_some() || markers.is_text(f));
         let has_header = match opts.header {
             Header::Yes => true,
             Header::No => false,
@@ -262,20 +277,28 @@ fn parse_number(field: &[u8]) -> Option<f64> {
     std::str::from_utf8(field).ok()?.parse::<f64>().ok()
 }
 
-fn parse_field(path: &Path, line: u64, col: &str, field: &[u8], delimiter: Delimiter) -> Result<f64> {
-    if field.is_empty() {
-        return Err(input_error(path, format!("line {line}, column '{col}': empty value")));
+/// One selected field: its number, or NaN for a missing sample (empty, `NaN`, a marker).
+fn parse_field(
+    path: &Path,
+    line: u64,
+    col: &str,
+    field: &[u8],
+    delimiter: Delimiter,
+    markers: &Markers,
+) -> Result<f64> {
+    if field.is_empty() || markers.is_text(field) {
+        return Ok(f64::NAN);
     }
     match parse_number(field) {
         // The place is formatted only for an error: this runs for every field of a long record.
-        Some(v) if v.is_finite() => Ok(v),
-        Some(v) => check_finite(path, &format!("line {line}"), col, v),
+        Some(v) if v.is_finite() && !markers.is_value(v) => Ok(v),
+        Some(v) => sample(path, &format!("line {line}"), col, v, markers),
         None => {
             let s = String::from_utf8_lossy(field);
             let hint = if s.contains(',') && delimiter != Delimiter::Byte(b',') {
                 " (a decimal comma? the decimal mark must be '.')"
             } else {
-                ""
+                " (a missing sample? name its marker in the record's \"missing\")"
             };
             Err(input_error(path, format!("line {line}, column '{col}': '{s}' is not a number{hint}")))
         }

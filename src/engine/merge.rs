@@ -159,7 +159,7 @@ pub fn merge(out: &Path, partial: bool, report: bool) -> Result<MergeOutcome> {
                 (rows, Some(prepared))
             }
         };
-        let inputs = prepared.as_ref().map(|p| &p.inputs);
+        let inputs = prepared.as_ref().map(|p| (&p.inputs, &p.gaps));
         let selection = write_results(out, &g.job, &rows, inputs, 0)?;
         result.huber = crate::table::huber_rows(&rows);
         result.ls = rows.len() - result.huber;

@@ -62,6 +62,8 @@ pub struct Prepared {
     pub plan: Plan,
     /// The product of `plan`, or the coordinate search in it ([`crate::search`]).
     pub search: Search,
+    /// What was missing in the records and what became of it (METHOD.md 21.1).
+    pub gaps: crate::data::RecordGaps,
 }
 
 impl Prepared {
@@ -92,7 +94,7 @@ pub fn prepare(path: &Path) -> Result<Prepared> {
 /// [`prepare`] of a job already read and checked.
 fn prepare_job(job: job::ValidJob) -> Result<Prepared> {
     let path = &job.file;
-    let inputs = job::load_inputs(&job)?;
+    let (inputs, gaps) = job::load_inputs_gaps(&job)?;
     let since = std::time::Instant::now();
     let spectral = match job.job.band_hz {
         Some([lo, hi]) => {
@@ -115,7 +117,7 @@ fn prepare_job(job: job::ValidJob) -> Result<Prepared> {
     let spectrum_seconds = if spectral.is_some() { since.elapsed().as_secs_f64() } else { 0.0 };
     let plan = Plan::from_job(&job);
     let search = Search::of_job(&job, &plan);
-    Ok(Prepared { job, inputs, spectral, spectrum_seconds, plan, search })
+    Ok(Prepared { job, inputs, spectral, spectrum_seconds, plan, search, gaps })
 }
 
 /// How to run a job.
@@ -468,7 +470,7 @@ fn run_loaded(
     // served (if deleting it fails, a rerun finds every cell done and merges again), then the
     // report.
     let writing = Instant::now();
-    let selection = write_results(&out, &p.job, &outcome.rows, Some(&p.inputs), opts.threads)?;
+    let selection = write_results(&out, &p.job, &outcome.rows, Some((&p.inputs, &p.gaps)), opts.threads)?;
     if let Some(prof) = &profile {
         prof.add(Phase::Write, writing);
         prof.serial("write", writing.elapsed().as_secs_f64());

@@ -9,6 +9,7 @@
 //! under temporary names and put in place in a fixed order, as one after the other would be.
 
 use super::{beyond, uncertainty};
+use crate::data::RecordGaps;
 use crate::error::Result;
 use crate::export;
 use crate::job::{Inputs, ValidJob};
@@ -17,23 +18,26 @@ use crate::table::CellRow;
 use std::path::Path;
 
 /// Writes the result files of `rows`, replacing any report of an earlier table. Returns the
-/// picks. `inputs` are the job's records as the run read them (None: a merge that could not
-/// read the data files): they give the levels and warnings selection.json keeps, the picks'
-/// covariance the report draws and the bootstrap the job's `uncertainty` may ask for (on
-/// `threads` workers, 0: all cores).
+/// picks. `read` holds the job's records as the run read them and their gaps (None: a merge
+/// that could not read the data files): they give the levels, warnings and gaps selection.json
+/// keeps, the picks' covariance the report draws and the bootstrap the job's `uncertainty` may
+/// ask for (on `threads` workers, 0: all cores).
 pub(super) fn write_results(
     out: &Path,
     job: &ValidJob,
     rows: &[CellRow],
-    inputs: Option<&Inputs>,
+    read: Option<(&Inputs, &RecordGaps)>,
     threads: usize,
 ) -> Result<Selection> {
+    let inputs = read.map(|(inputs, _)| inputs);
     let pool = crate::pool::local(threads, "to write the results")?;
     let (cells, picked) = pool.install(|| {
         rayon::join(
             || export::parquet::stage_cells(&out.join(export::CELLS_FILE), rows),
             || {
-                let selection = picks(job, rows, inputs);
+                let mut selection = picks(job, rows, inputs);
+                // Only a record that missed something: a complete one's file is as it was.
+                selection.gaps = read.map(|(_, gaps)| gaps).filter(|g| g.any()).cloned();
                 let path = out.join(export::SELECTION_FILE);
                 let staged = export::json::stage_json(&path, &export::json::Versioned::new(&selection));
                 (selection, staged)

@@ -1,8 +1,12 @@
 //! The records a job names, read beside the checked job: the one loader of the estimation and
 //! validation records, for a run, a merge, the report and `oesweep fit`.
+//!
+//! Records with gaps (METHOD.md 21.1) take their shape here, where the grid is known: a segment
+//! between input gaps shorter than the largest model's [`data::min_samples_of`] is left out
+//! (the shortest useful segment); the counts ([`RecordGaps`]) go beside the records.
 
 use super::{Records, ValidJob};
-use crate::data::{self, Levels, Offset, Record};
+use crate::data::{self, Gaps, Levels, Offset, Record, RecordGaps};
 use crate::error::Result;
 use crate::estimate::integrating::{PoleTest, pole_tests};
 use crate::oe::Structure;
@@ -24,16 +28,16 @@ pub struct Inputs {
 
 /// Read the job's data files and check them against the largest orders of the grid.
 pub fn load_inputs(vj: &ValidJob) -> Result<Inputs> {
-    let delays: Vec<usize> = vj.grids.iter().map(|g| g.delays.iter().copied().min().unwrap_or(0)).collect();
-    read_inputs(&vj.job.data, vj.job.validation.as_ref(), vj.job.offset, &vj.largest_structure(), &delays)
+    load_inputs_gaps(vj).map(|(inputs, _)| inputs)
 }
 
-/// The one loader of records, for a job and for `oesweep fit`: read the estimation and the
-/// validation record as their specs say (the validation output column resolved, see
-/// [`resolve_validation`]), check both against the largest model `largest`
-/// ([`data::check_for_structure`]: length, constant columns, collinear inputs), and take out
-/// the levels of `offset` ([`Levels::of`], computed here only). `delays`, one per input, are
-/// those of the integrating-plant test (each input's smallest in the grid).
+/// [`load_inputs`] with the gaps of the records (what was missing and what became of it).
+pub fn load_inputs_gaps(vj: &ValidJob) -> Result<(Inputs, RecordGaps)> {
+    let delays: Vec<usize> = vj.grids.iter().map(|g| g.delays.iter().copied().min().unwrap_or(0)).collect();
+    read_inputs_gaps(&vj.job.data, vj.job.validation.as_ref(), vj.job.offset, &vj.largest_structure(), &delays)
+}
+
+/// [`read_inputs_gaps`] without the gaps.
 pub fn read_inputs(
     data: &Records,
     validation: Option<&Records>,
@@ -41,18 +45,26 @@ pub fn read_inputs(
     largest: &Structure,
     delays: &[usize],
 ) -> Result<Inputs> {
-    // Each experiment long enough on its own: the simulation restarts in every one.
-    let concat = |specs: &Records| -> Result<Record> {
-        let records = read_experiments(specs)?;
-        if records.len() > 1 {
-            for rec in &records {
-                if rec.len() < data::min_samples_of(largest) {
-                    data::check_for_structure(rec, largest)?;
-                }
-            }
-        }
-        Ok(Record::concat(records))
-    };
+    read_inputs_gaps(data, validation, offset, largest, delays).map(|(inputs, _)| inputs)
+}
+
+/// The one loader of records, for a job and for `oesweep fit`: read the estimation and the
+/// validation record as their specs say (the validation output column resolved, see
+/// [`resolve_validation`]), check both against the largest model `largest`
+/// ([`data::check_for_structure`]: length, constant columns, collinear inputs), and take out
+/// the levels of `offset` ([`Levels::of`], computed here only). `delays`, one per input, are
+/// those of the integrating-plant test (each input's smallest in the grid). Records with gaps
+/// are shaped with the shortest useful segment of `largest`; their counts are returned beside,
+/// and what the user must be told of them (interpolated inputs, segments left out) joins the
+/// warnings.
+pub fn read_inputs_gaps(
+    data: &Records,
+    validation: Option<&Records>,
+    offset: Offset,
+    largest: &Structure,
+    delays: &[usize],
+) -> Result<(Inputs, RecordGaps)> {
+    let concat = |specs: &Records| read_experiments(specs, data::min_samples_of(largest), Some(largest));
     let concat = &concat;
     // The validation record is read beside the estimation record and its integrating-plant
     // test: on a long record these are most of a run's serial start. The errors keep their
@@ -63,18 +75,47 @@ pub fn read_inputs(
         let integrating = est
             .as_ref()
             .ok()
+            .map(|e| &e.record)
             .filter(|e| e.inputs() == delays.len() && data::check_for_structure(e, largest).is_ok())
             .map(|e| pole_tests(&e.u, e.inputs(), &e.y, &e.seams, delays));
         let val = val.map(|h| h.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)));
         (est, val, integrating)
     });
     let (est, val) = (est?, val.transpose()?);
-    inputs_with(est, val, offset, largest, |_| integrating.unwrap_or_default())
+    let gaps = RecordGaps::of(est.gaps, val.as_ref().map(|v| v.gaps));
+    let warnings: Vec<String> = est.warnings.iter().chain(val.iter().flat_map(|v| &v.warnings)).cloned().collect();
+    let mut inputs =
+        inputs_with(est.record, val.map(|v| v.record), offset, largest, |_| integrating.unwrap_or_default())?;
+    inputs.warnings.extend(warnings);
+    Ok((inputs, gaps))
 }
 
-/// The records of `data` or `validation` as read, one per experiment.
-fn read_experiments(specs: &Records) -> Result<Vec<Record>> {
-    specs.specs.iter().map(|s| data::read_record_inputs(&s.path, &s.u_cols(), &s.y_col(), &s.read_options())).collect()
+/// The experiments of `data` or `validation` as one record ([`Record::concat`]), with their
+/// gaps together and what to say about them.
+struct Read {
+    record: Record,
+    gaps: Gaps,
+    warnings: Vec<String>,
+}
+
+/// The records of `data` or `validation` as read, each shaped with the shortest useful segment
+/// `shortest` ([`data::gaps::shape`]), and concatenated. With `largest`, each experiment of a
+/// list must be long enough for it on its own: the simulation restarts in every one.
+fn read_experiments(specs: &Records, shortest: usize, largest: Option<&Structure>) -> Result<Read> {
+    let (mut records, mut all, mut warnings) = (Vec::new(), Vec::new(), Vec::new());
+    for s in &specs.specs {
+        let opts = s.read_options();
+        let (rec, gaps) = data::read_record_gaps(&s.path, &s.u_cols(), &s.y_col(), &opts, shortest)?;
+        warnings.extend(gaps.warnings(&s.path, opts.interpolate_inputs));
+        records.push(rec);
+        all.push(gaps);
+    }
+    if let Some(largest) = largest.filter(|_| records.len() > 1) {
+        for rec in records.iter().filter(|r| r.len() < shortest) {
+            data::check_for_structure(rec, largest)?;
+        }
+    }
+    Ok(Read { record: Record::concat(records), gaps: Gaps::sum(all), warnings })
 }
 
 /// [`read_inputs`] of records already in memory: checked against the largest model, levels
@@ -128,9 +169,30 @@ fn inputs_with(
 
 /// The records of a checked job, as read from the files (levels not taken out): for the
 /// report's plots, which show the data in its own units.
-/// A list of records is one record of several experiments ([`Record::concat`]).
+/// A list of records is one record of several experiments ([`Record::concat`]). Without the
+/// grid, segments between input gaps shorter than [`data::gaps::SHORTEST_SEGMENT`] are left
+/// out; [`read_records_for`] gives the records as a run of the grid reads them.
 pub fn read_records(data: &Records, validation: Option<&Records>) -> Result<(Record, Option<Record>)> {
-    let est = Record::concat(read_experiments(data)?);
-    let val = validation.map(|v| read_experiments(v).map(Record::concat)).transpose()?;
-    Ok((est, val))
+    read_records_shortest(data, validation, data::gaps::SHORTEST_SEGMENT).map(|(est, val, _)| (est, val))
+}
+
+/// [`read_records`] as a run of a grid whose largest model is `largest` reads them (segments
+/// shorter than its [`data::min_samples_of`] left out), with their gaps.
+pub fn read_records_for(
+    data: &Records,
+    validation: Option<&Records>,
+    largest: &Structure,
+) -> Result<(Record, Option<Record>, RecordGaps)> {
+    read_records_shortest(data, validation, data::min_samples_of(largest))
+}
+
+fn read_records_shortest(
+    data: &Records,
+    validation: Option<&Records>,
+    shortest: usize,
+) -> Result<(Record, Option<Record>, RecordGaps)> {
+    let est = read_experiments(data, shortest, None)?;
+    let val = validation.map(|v| read_experiments(v, shortest, None)).transpose()?;
+    let gaps = RecordGaps::of(est.gaps, val.as_ref().map(|v| v.gaps));
+    Ok((est.record, val.map(|v| v.record), gaps))
 }

@@ -19,7 +19,10 @@ mod validate;
 
 pub use crate::reduce::SelectionSettings;
 pub use grid::{Grid, KGrid, KRange, SearchMode, Spacing};
-pub use inputs::{Inputs, inputs_of_records, load_inputs, read_inputs, read_records};
+pub use inputs::{
+    Inputs, inputs_of_records, load_inputs, load_inputs_gaps, read_inputs, read_inputs_gaps, read_records,
+    read_records_for,
+};
 pub use per_input::{Delays, InputColumns, InputGrid, Ranges, check_count, structure_of};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -68,6 +71,16 @@ pub struct DataSpec {
     /// Data rows `[first, last]` (1-based, inclusive; the header is not a row). Default: all.
     #[serde(default)]
     pub rows: Option<[usize; 2]>,
+    /// Markers of missing samples besides `NaN` and empty fields (`["NA", -999]`,
+    /// [`data::Marker`]). Records 2.. of a list and the validation record default to the
+    /// first record's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub missing: Option<Vec<data::Marker>>,
+    /// Input gaps of at most this many samples between two present ones are filled by linear
+    /// interpolation, and said (METHOD.md 21.1); default 0: none, every input gap splits the
+    /// record. Defaults as `missing`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interpolate_inputs: Option<usize>,
 }
 
 impl DataSpec {
@@ -77,6 +90,8 @@ impl DataSpec {
             delimiter: self.delimiter.as_deref().and_then(|d| Delimiter::parse(d).ok()),
             header: self.header.unwrap_or_default(),
             rows: self.rows,
+            missing: self.missing.clone().unwrap_or_default(),
+            interpolate_inputs: self.interpolate_inputs.unwrap_or(0),
         }
     }
 
@@ -91,13 +106,20 @@ impl DataSpec {
     }
 }
 
-/// One record named as the job file names it (path, columns, rows, delimiter, header), read on
-/// its own: the Python package's `oesweep.read`. The reader fields are checked as the job's,
-/// named `field 'rows'` and so on.
+/// One record named as the job file names it (path, columns, rows, delimiter, header,
+/// missing), read on its own. The reader fields are checked as the job's, named `field 'rows'`
+/// and so on.
 pub fn read_record(spec: &DataSpec) -> Result<data::Record> {
+    let raw = read_raw(spec)?;
+    data::gaps::shape(raw, spec.read_options().interpolate_inputs, data::gaps::SHORTEST_SEGMENT).map(|(r, _)| r)
+}
+
+/// [`read_record`] as the file has it, missing samples NaN and nothing cut: the Python
+/// package's `oesweep.read`, whose arrays `oesweep.fit` shapes as a job's record.
+pub fn read_raw(spec: &DataSpec) -> Result<data::Raw> {
     validate::check_data_spec(spec, "data")
         .map_err(|(f, m)| Error::Invalid(format!("field '{}': {m}", f.trim_start_matches("data."))))?;
-    data::read_record_inputs(&spec.path, &spec.u_cols(), &spec.y_col(), &spec.read_options())
+    data::read_raw(&spec.path, &spec.u_cols(), &spec.y_col(), &spec.read_options())
 }
 
 /// The records of `data` or `validation`: one object (the usual job) or a list of them, one per

@@ -61,6 +61,12 @@ pub(super) fn check_data_spec(d: &DataSpec, which: &str) -> std::result::Result<
     if let Some(rows) = d.rows {
         data::check_rows(rows).map_err(|m| (format!("{which}.rows"), m))?;
     }
+    if let Some(l) = d.interpolate_inputs.filter(|&l| l > data::gaps::MAX_INTERPOLATE) {
+        return Err((
+            format!("{which}.interpolate_inputs"),
+            format!("{l} samples: at most {} (a longer straight line invents the input)", data::gaps::MAX_INTERPOLATE),
+        ));
+    }
     let inputs = d.u.iter().flat_map(|u| u.cols.iter().enumerate().map(|(i, c)| (u.list, i, c)));
     let named = inputs.map(|(list, i, c)| (if list { format!("u[{i}]") } else { "u".into() }, c));
     for (name, c) in named.chain(d.y.iter().map(|c| ("y".to_string(), c))) {
@@ -69,6 +75,17 @@ pub(super) fn check_data_spec(d: &DataSpec, which: &str) -> std::result::Result<
         }
     }
     Ok(())
+}
+
+/// A record's gap settings (`missing`, `interpolate_inputs`) default to the first record's:
+/// the same logger writes the same markers.
+fn inherit_gaps(spec: &mut DataSpec, first: &DataSpec) {
+    if spec.missing.is_none() {
+        spec.missing = first.missing.clone();
+    }
+    if spec.interpolate_inputs.is_none() {
+        spec.interpolate_inputs = first.interpolate_inputs;
+    }
 }
 
 /// `p` relative to `base`, with `a/../` folded lexically so messages show readable paths.
@@ -132,6 +149,7 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
                 if spec.header.is_none() {
                     spec.header = first.header;
                 }
+                inherit_gaps(spec, first);
             }
         }
         check_data_spec(spec, name).map_err(|(f, m)| bad(&f, m))?;
@@ -170,6 +188,7 @@ pub(super) fn validate(path: &Path, mut job: Job) -> Result<Job> {
             v.delimiter = data0.delimiter.clone();
         }
         v.header.get_or_insert(data0.header.unwrap_or_default());
+        inherit_gaps(v, &data0);
         check_data_spec(v, vname).map_err(|(f, m)| bad(&f, m))?;
         if let Some(ts) = v.ts {
             check_same_ts(ts, data0.ts.unwrap(), "estimation record's").map_err(|m| bad(&format!("{vname}.ts"), m))?;

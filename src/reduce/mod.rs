@@ -182,6 +182,9 @@ pub struct Selection {
     /// 17.3): one entry per model.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub bootstrap: Vec<PickBootstrap>,
+    /// What was missing in the records (METHOD.md 21.1): absent when nothing was.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gaps: Option<crate::data::RecordGaps>,
 }
 
 /// The bootstrap of one picked model (METHOD.md 17.3) beside its sandwich standard deviations.
@@ -309,6 +312,7 @@ pub fn select(rows: &[CellRow], opts: &ReduceOptions) -> Selection {
         initial_state: None,
         warnings: Vec::new(),
         bootstrap: Vec::new(),
+        gaps: None,
     }
 }
 

@@ -39,9 +39,11 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::oe;
 
+mod gaps;
 mod prbs;
 
 use crate::rng::Xoshiro256;
+pub use gaps::{GapOptions, punch, simulate_csv};
 pub use prbs::{PRBS_BITS, prbs};
 
 /// An OE system `y = q^-delay B(q^-1)/F(q^-1) u` as stored in a system JSON file:
@@ -291,9 +293,16 @@ pub fn generate_inputs(systems: &[SystemSpec], opts: &SimOptions) -> Result<SimR
 
 /// Shortest text that parses back to exactly `x`. `{}` alone is shortest-roundtrip too but
 /// never uses an exponent (1e-300 would take 300 digits), so tiny and huge values use `{:e}`.
+/// NaN, a sample [`punch`] took out, is an empty field: a missing sample as loggers write it.
 fn fmt_f64(out: &mut impl Write, x: f64) -> std::io::Result<()> {
     let a = x.abs();
-    if x == 0.0 || (1e-5..1e16).contains(&a) { write!(out, "{x}") } else { write!(out, "{x:e}") }
+    if x.is_nan() {
+        Ok(())
+    } else if x == 0.0 || (1e-5..1e16).contains(&a) {
+        write!(out, "{x}")
+    } else {
+        write!(out, "{x:e}")
+    }
 }
 
 /// Writes a simulated record as CSV with header `u,y,y0` (several inputs: `u1,u2,..,y,y0`), in
