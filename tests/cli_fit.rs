@@ -123,7 +123,21 @@ fn bad_inputs_give_exit_2_and_a_clear_message() {
         (d.join("missing.csv"), vec![], "cannot open file"),
         (write(d, "nocol.csv", "t,y\n1,2\n"), vec![], "no column 'u'"),
         (write(d, "text.csv", &good.replacen("\n1,", "\nabc,", 1)), vec![], "'abc' is not a number"),
-        (write(d, "nan.csv", &good.replacen("\n1,", "\nNaN,", 1)), vec![], "NaN"),
+        (
+            write(
+                d,
+                "allnan.csv",
+                &good
+                    .lines()
+                    .enumerate()
+                    .map(|(i, l)| if i == 0 { l.to_string() } else { format!("{},NaN", l.split(',').next().unwrap()) })
+                    .collect::<Vec<_>>()
+                    .join("\n"),
+            ),
+            vec![],
+            "every output of column 'y' is missing",
+        ),
+        (good_p.clone(), vec!["--interpolate-inputs", "5000"], "--interpolate-inputs"),
         (write(d, "inf.csv", &good.replacen("\n1,", "\ninf,", 1)), vec![], "infinite"),
         (write(d, "short.csv", "u,y\n1,0\n-1,1\n1,0\n"), vec![], "too few"),
         (
@@ -180,4 +194,46 @@ fn the_command_line_in_process_returns_the_binarys_exit_codes() {
         assert_eq!(oesweep::cli::main_with_args(argv), code, "{args:?}");
         assert_eq!(oesweep(args).status.code(), Some(i32::from(code)), "{args:?}");
     }
+}
+
+/// `fit` reads a record with gaps as a run does (METHOD.md 21): a job's marker given as
+/// `--missing`, the input gap cut, the counts in `--json` and the summary.
+#[test]
+fn fit_reads_missing_samples_and_reports_their_counts() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 600;
+    let u: Vec<f64> = (0..n).map(|t| if (t / 3 + t / 7) % 2 == 0 { 1.0 } else { -1.0 }).collect();
+    let y = oesweep::oe::simulate_vec(&[0.5, 0.3], &[-1.2, 0.5], 1, &u);
+    let lines: Vec<String> = (0..n)
+        .map(|t| {
+            let u = if t == 300 { String::new() } else { u[t].to_string() };
+            let y = if (100..110).contains(&t) {
+                "-999".to_string()
+            } else {
+                (y[t] + 0.01 * ((t * 7919) % 13) as f64).to_string()
+            };
+            format!("{u},{y}")
+        })
+        .collect();
+    let path = write(d, "gappy.csv", &format!("u,y\n{}\n", lines.join("\n")));
+    let args = ["fit", "--data", path.to_str().unwrap(), "--nb", "2", "--nf", "2", "--k", "1", "--missing", "-999"];
+    let o = oesweep(&[&args[..], &["--json"]].concat());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let g = &v["gaps"]["data"];
+    assert_eq!((g["rows"].as_u64(), g["samples"].as_u64()), (Some(600), Some(599)), "{g}");
+    assert_eq!(
+        (g["outputs_missing"].as_u64(), g["rows_cut"].as_u64(), g["segments"].as_u64()),
+        (Some(10), Some(1), Some(2))
+    );
+    assert_eq!(v["n"].as_u64(), Some(599));
+    let b = v["b"].as_array().unwrap();
+    assert!((b[0].as_f64().unwrap() - 0.5).abs() < 0.05, "{b:?}");
+    // Without the marker, -999 is a number: the record is read whole and fitted badly.
+    let o = oesweep(&args[..args.len() - 2]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = oesweep(&args);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("gaps       data: 599 of 600 rows fitted: 10 outputs missing"), "{out}");
 }

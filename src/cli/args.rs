@@ -225,6 +225,14 @@ pub struct FitArgs {
     /// depend on it.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// A value that marks a missing sample in the files besides NaN and empty fields (-999);
+    /// repeat or separate by commas for several (METHOD.md 21.1).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub missing: Vec<String>,
+    /// Fill input gaps of at most L samples by linear interpolation (said in a warning);
+    /// 0: cut the record at every input gap.
+    #[arg(long, value_name = "L", default_value_t = 0)]
+    pub interpolate_inputs: usize,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,

@@ -199,6 +199,8 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
         },
         bootstrap: a.bootstrap,
         threads: a.threads,
+        missing: a.missing.iter().map(|m| crate::data::Marker::parse(m)).collect(),
+        interpolate_inputs: a.interpolate_inputs,
     };
     let report = engine::fit(&req)?;
     for w in &report.warnings {
@@ -208,6 +210,7 @@ fn run_fit(a: &FitArgs) -> Result<u8> {
         outln!("{}", report.to_json());
     } else {
         print_fit_summary(&report);
+        print_gaps(report.gaps.as_ref());
     }
     Ok(0)
 }

@@ -45,6 +45,12 @@ pub struct FitRequest {
     /// Worker threads of the bootstrap's replicates (0: all cores), on a pool of its own: the
     /// host's rayon pool is left alone. The intervals do not depend on it.
     pub threads: usize,
+    /// What else marks a missing sample in the files, besides NaN and empty fields (`--missing`,
+    /// the job's `data.missing`; METHOD.md 21.1).
+    pub missing: Vec<data::Marker>,
+    /// Input gaps of at most this many samples filled by linear interpolation
+    /// (`--interpolate-inputs`, the job's `data.interpolate_inputs`; 0: none, the record is cut).
+    pub interpolate_inputs: usize,
 }
 
 /// Report of [`fit`] (`fit --json` prints it).
@@ -89,6 +95,10 @@ pub struct FitReport {
     pub bootstrap: Option<estimate::bootstrap::Bootstrap>,
     pub seconds: f64,
     pub ls: LsFit,
+    /// What was missing in the files and what became of it (METHOD.md 21.1); None for complete
+    /// records and for arrays.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gaps: Option<data::RecordGaps>,
 }
 
 impl FitReport {
@@ -137,6 +147,8 @@ impl FitRequest {
             solver: SolverOptions::default(),
             bootstrap: None,
             threads: 0,
+            missing: Vec::new(),
+            interpolate_inputs: 0,
         }
     }
 
@@ -158,6 +170,7 @@ impl FitRequest {
             }
         }
         job::check_k(self.k).map_err(|m| bad("--k", m))?;
+        job::check_interpolate(self.interpolate_inputs).map_err(|m| bad("--interpolate-inputs", m))?;
         if let Some(ts) = self.ts {
             job::check_sampling_period(ts).map_err(|m| bad("--ts", m))?;
         }
@@ -184,11 +197,15 @@ impl FitRequest {
 pub fn fit(req: &FitRequest) -> Result<FitReport> {
     req.check()?;
     // The records as a job names them, read by the run's loader.
+    let missing = (!req.missing.is_empty()).then(|| req.missing.clone());
+    let interpolate_inputs = (req.interpolate_inputs > 0).then_some(req.interpolate_inputs);
     let data = job::DataSpec {
         path: req.data.clone(),
         u: Some(job::InputColumns::list(req.u.clone())),
         y: Some(req.y.clone()),
         rows: req.rows,
+        missing: missing.clone(),
+        interpolate_inputs,
         ..Default::default()
     };
     let val_path = req.validation.clone().or_else(|| req.val_rows.map(|_| req.data.clone()));
@@ -201,14 +218,18 @@ pub fn fit(req: &FitRequest) -> Result<FitReport> {
                 u: Some(job::InputColumns::list(req.u.clone())),
                 y: Some(y),
                 rows: req.val_rows,
+                missing,
+                interpolate_inputs,
                 ..Default::default()
             })
         }
         None => None,
     };
     let validation = validation.map(job::Records::one);
-    let (est, val) = job::read_records(&job::Records::one(data), validation.as_ref())?;
-    fit_records(req, est, val, val_path)
+    let (est, val, gaps) = job::read_records_for(&job::Records::one(data), validation.as_ref(), &req.structure)?;
+    let mut report = fit_records(req, est, val, val_path)?;
+    report.gaps = (gaps.data.is_some() || gaps.validation.is_some()).then_some(gaps);
+    Ok(report)
 }
 
 /// [`fit`] of records in memory (the Python package's arrays; `req`'s file fields only name
@@ -326,6 +347,7 @@ fn fit_records(
         bootstrap,
         seconds,
         ls,
+        gaps: None,
     })
 }
 

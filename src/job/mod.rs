@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 pub use uncertainty::{Uncertainty, UncertaintyMethod};
 use validate::{check_as_run, resolve_validation, validate};
-pub use validate::{check_band, check_k, check_order, check_sampling_period, check_solver};
+pub use validate::{check_band, check_interpolate, check_k, check_order, check_sampling_period, check_solver};
 
 /// Largest number of Huber cells a job may ask for.
 pub const MAX_CELLS: usize = 200_000;

@@ -53,6 +53,17 @@ pub fn check_band(lo: f64, hi: f64, ts: f64) -> std::result::Result<(), String> 
     }
 }
 
+/// The rule of `interpolate_inputs` (the job field and `fit --interpolate-inputs`).
+pub fn check_interpolate(l: usize) -> std::result::Result<(), String> {
+    if l > data::gaps::MAX_INTERPOLATE {
+        return Err(format!(
+            "{l} samples: at most {} (a longer straight line invents the input)",
+            data::gaps::MAX_INTERPOLATE
+        ));
+    }
+    Ok(())
+}
+
 /// The reader fields of a data spec (`which` is "data" or "validation"): (field, message).
 pub(super) fn check_data_spec(d: &DataSpec, which: &str) -> std::result::Result<(), (String, String)> {
     if let Some(delim) = &d.delimiter {
@@ -61,11 +72,8 @@ pub(super) fn check_data_spec(d: &DataSpec, which: &str) -> std::result::Result<
     if let Some(rows) = d.rows {
         data::check_rows(rows).map_err(|m| (format!("{which}.rows"), m))?;
     }
-    if let Some(l) = d.interpolate_inputs.filter(|&l| l > data::gaps::MAX_INTERPOLATE) {
-        return Err((
-            format!("{which}.interpolate_inputs"),
-            format!("{l} samples: at most {} (a longer straight line invents the input)", data::gaps::MAX_INTERPOLATE),
-        ));
+    if let Some(l) = d.interpolate_inputs {
+        check_interpolate(l).map_err(|m| (format!("{which}.interpolate_inputs"), m))?;
     }
     let inputs = d.u.iter().flat_map(|u| u.cols.iter().enumerate().map(|(i, c)| (u.list, i, c)));
     let named = inputs.map(|(list, i, c)| (if list { format!("u[{i}]") } else { "u".into() }, c));
