@@ -113,11 +113,10 @@ fn fit(
     let structure = Structure::new(&orders).ok_or_else(|| {
         JobError::new_err(format!("{} inputs: between 1 and {MAX_INPUTS} are supported", orders.len()))
     })?;
-    let max = oesweep::data::gaps::MAX_INTERPOLATE;
-    if interpolate_inputs > max {
-        return Err(JobError::new_err(format!("interpolate_inputs {interpolate_inputs}: at most {max} samples")));
-    }
-    let est = record_of_arrays("<u, y arrays>", input_floats("u", &u)?, floats("y", y)?, interpolate_inputs, &structure)?;
+    oesweep::job::check_interpolate(interpolate_inputs)
+        .map_err(|m| JobError::new_err(format!("interpolate_inputs {m}")))?;
+    let est =
+        record_of_arrays("<u, y arrays>", input_floats("u", &u)?, floats("y", y)?, interpolate_inputs, &structure)?;
     let val = match (val_u, val_y) {
         (Some(vu), Some(vy)) => Some(record_of_arrays(
             "<validation arrays>",
