@@ -10,50 +10,17 @@ use oesweep::oe::{self, Structure};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// Uniform numbers in (0, 1) and Gaussians from an LCG (the same on every machine).
-struct Noise(u64);
-
-impl Noise {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn gauss(&mut self) -> f64 {
-        let (a, b) = (self.uniform(), self.uniform());
-        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
-    }
-}
-
-/// Sorted indices of about `share` of `n` samples: half in bursts of 20, half at random.
-fn gaps(n: usize, share: f64, r: &mut Noise) -> Vec<usize> {
-    let mut gone = vec![false; n];
-    let target = (share * n as f64) as usize;
-    let mut count = 0;
-    while count < target / 2 {
-        let start = (r.uniform() * (n - 20) as f64) as usize;
-        for g in &mut gone[start..start + 20] {
-            count += usize::from(!*g);
-            *g = true;
-        }
-    }
-    while count < target {
-        let t = (r.uniform() * n as f64) as usize;
-        count += usize::from(!gone[t]);
-        gone[t] = true;
-    }
-    (0..n).filter(|&t| gone[t]).collect()
-}
-
 /// An OE(2,2) record (delay 1) with output noise of std `noise` and 5 % of its outputs
 /// missing (NaN in y).
 fn record(n: usize, noise: f64, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<usize>) {
     let (b, f) = oe22();
     let u = binary_input(n, 3, 1.0, seed);
     let mut y = oe::simulate_vec(&b, &f, 1, &u);
-    let mut r = Noise(seed ^ 0x5eed);
+    let mut r = Draws(seed ^ 0x5eed);
     for v in y.iter_mut() {
         *v += noise * r.gauss();
     }
-    let missing = gaps(n, 0.05, &mut r);
+    let missing = output_gaps(n, 0.05, &mut r);
     for &t in &missing {
         y[t] = f64::NAN;
     }
@@ -137,7 +104,7 @@ fn the_arx_start_with_gaps_is_the_regression_of_the_complete_rows() {
 fn the_evidence_of_a_record_with_gaps_is_that_of_its_observed_samples() {
     let n = 4000;
     let (u, mut y, missing) = record(n, 0.1, 21);
-    let mut r = Noise(77);
+    let mut r = Draws(77);
     for (t, v) in y.iter_mut().enumerate() {
         if t % 29 == 5 && !v.is_nan() {
             *v += 2.0 * if r.uniform() < 0.5 { 1.0 } else { -1.0 };
@@ -224,7 +191,7 @@ fn the_spectral_estimate_uses_the_stretches_between_gaps() {
     let (b, f) = oe22();
     let u = binary_input(n, 1, 1.0, 5);
     let mut y = oe::simulate_vec(&b, &f, 1, &u);
-    let mut r = Noise(9);
+    let mut r = Draws(9);
     y.iter_mut().for_each(|v| *v += 0.05 * r.gauss());
     let missing: Vec<usize> = (half..half + 20).collect();
     for &t in &missing {
@@ -256,8 +223,8 @@ fn the_integrating_test_runs_on_the_observed_stretches() {
     use oesweep::estimate::integrating::pole_test;
     let n = 3000;
     let u = binary_input(n, 5, 1.0, 11);
-    let mut r = Noise(12);
-    let missing = gaps(n, 0.05, &mut r);
+    let mut r = Draws(12);
+    let missing = output_gaps(n, 0.05, &mut r);
     for (pole, integrating) in [(1.0, true), (0.9, false)] {
         let mut y = oe::simulate_vec(&[0.1], &[-pole], 1, &u);
         y.iter_mut().for_each(|v| *v += 0.05 * r.gauss());

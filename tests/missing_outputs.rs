@@ -9,21 +9,6 @@ use common::*;
 use oesweep::estimate::{self, Judge, Loss, Problem, SolverOptions, Workspace};
 use oesweep::oe::{self, Structure};
 
-/// A small, fully specified noise source (Box-Muller over an LCG), so the test is the same on
-/// every machine.
-struct Noise(u64);
-
-impl Noise {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn gauss(&mut self) -> f64 {
-        let (a, b) = (self.uniform(), self.uniform());
-        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
-    }
-}
-
 /// An OE(2,2) record of N samples with Gaussian noise and 5 % spikes, and the indices of 5 % of
 /// its outputs: half of them at random, half in bursts of 20.
 fn record_with_gaps(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<usize>) {
@@ -36,29 +21,14 @@ fn records(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<usize>) {
     let (b, f) = oe22();
     let u = binary_input(n, 3, 1.0, seed);
     let mut y = oe::simulate_vec(&b, &f, 1, &u);
-    let mut r = Noise(seed ^ 0x9e37);
+    let mut r = Draws(seed ^ 0x9e37);
     for v in y.iter_mut() {
         *v += 0.05 * r.gauss();
         if r.uniform() < 0.05 {
             *v += if r.uniform() < 0.5 { 1.0 } else { -1.0 };
         }
     }
-    let mut gone = vec![false; n];
-    let target = n / 20;
-    let mut count = 0;
-    while count < target / 2 {
-        let start = (r.uniform() * (n - 20) as f64) as usize;
-        for g in &mut gone[start..start + 20] {
-            count += usize::from(!*g);
-            *g = true;
-        }
-    }
-    while count < target {
-        let t = (r.uniform() * n as f64) as usize;
-        count += usize::from(!gone[t]);
-        gone[t] = true;
-    }
-    let missing: Vec<usize> = (0..n).filter(|&t| gone[t]).collect();
+    let missing = output_gaps(n, 0.05, &mut r);
     let full = y.clone();
     for &t in &missing {
         y[t] = f64::NAN;

@@ -285,3 +285,39 @@ pub fn negate_page_values(bytes: &[u8], column: &str) -> Vec<u8> {
         pos += len + header.compressed_page_size as usize;
     }
 }
+
+/// A small, fully specified random source (an LCG, Box-Muller for Gaussian draws), so that
+/// records with gaps are the same on every machine.
+pub struct Draws(pub u64);
+
+impl Draws {
+    pub fn uniform(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+    pub fn gauss(&mut self) -> f64 {
+        let (a, b) = (self.uniform(), self.uniform());
+        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
+    }
+}
+
+/// Sorted indices of `share` of `n` samples (METHOD.md 21): half in bursts of 20, half at
+/// random.
+pub fn output_gaps(n: usize, share: f64, r: &mut Draws) -> Vec<usize> {
+    let mut gone = vec![false; n];
+    let target = (share * n as f64) as usize;
+    let mut count = 0;
+    while count < target / 2 {
+        let start = (r.uniform() * (n - 20) as f64) as usize;
+        for g in &mut gone[start..start + 20] {
+            count += usize::from(!*g);
+            *g = true;
+        }
+    }
+    while count < target {
+        let t = (r.uniform() * n as f64) as usize;
+        count += usize::from(!gone[t]);
+        gone[t] = true;
+    }
+    (0..n).filter(|&t| gone[t]).collect()
+}
