@@ -143,7 +143,10 @@ impl Review {
         for spec in job.job.validation.iter().flat_map(|v| &v.specs) {
             gone(spec, "validation")?;
         }
-        let (est, val) = crate::job::read_records(&job.job.data, job.job.validation.as_ref())?;
+        // Shaped as the run shaped them (segments shorter than the grid's largest model left
+        // out), so the figures show the samples the models were fitted to.
+        let (est, val, _) =
+            crate::job::read_records_for(&job.job.data, job.job.validation.as_ref(), &job.largest_structure())?;
         let u0 = selection.input_level.unwrap_or(0.0);
         let u0s = selection.input_levels.clone().unwrap_or_else(|| vec![u0; job.m]);
         Ok(Review { folder, rows, selection, job, version, est, val, u0, u0s })
