@@ -98,10 +98,11 @@ def test_load_reads_a_run_merged_from_shards(tmp_path):
 
 def test_bad_inputs_raise_the_typed_errors_and_write_nothing(tmp_path):
     u, y = record()
-    y_nan = y.copy()
-    y_nan[7] = np.nan
-    with pytest.raises(oesweep.DataError, match="sample 7 of y is NaN"):
-        oesweep.fit(u, y_nan, 2, 2, 0.5)
+    # NaN is a missing sample (METHOD.md 21); an infinite one is refused.
+    y_inf = y.copy()
+    y_inf[7] = np.inf
+    with pytest.raises(oesweep.DataError, match="sample 7 of y is inf"):
+        oesweep.fit(u, y_inf, 2, 2, 0.5)
     with pytest.raises(oesweep.DataError, match="must be equal"):
         oesweep.fit(u, y[:-1], 2, 2, 0.5)
     # A 2-D array is one input per column: the same column twice cannot be told apart.
