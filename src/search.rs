@@ -63,23 +63,6 @@ impl Search {
         Search::Coordinate(Coordinate { per_input })
     }
 
-    /// `oesweep slurm` submits one array of shards and one merge; a coordinate search is sharded
-    /// round by round ([`Step::Shard`]), which it does not submit: `what` (`--shards 4`) is
-    /// refused for it, saying how to run the rounds.
-    pub fn check_slurm(&self, what: &str) -> Result<()> {
-        match self {
-            Search::Product => Ok(()),
-            Search::Coordinate(c) => Err(crate::error::Error::Invalid(format!(
-                "{what}: the job's coordinate search (grid.search; {} structures per cycle over the inputs) is \
-                 sharded round by round, which `oesweep slurm` does not submit: run `oesweep run JOB --shard I/N` \
-                 for every I (an array job), again after each round, until `oesweep merge OUTPUT` finds the search \
-                 finished; or run it whole with `oesweep run JOB`, or set grid.search to \"product\" to split the \
-                 full product into shards",
-                c.cycle()
-            ))),
-        }
-    }
-
     pub fn name(&self) -> &'static str {
         match self {
             Search::Product => "product",

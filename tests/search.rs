@@ -3,8 +3,10 @@
 //! fits; a search stopped after any of its rows and resumed gives the table of a run that was
 //! never stopped, on another thread count; sharded round by round (every shard, then the merge,
 //! until the merge finds the search finished) it gives the whole run's table bit for bit at two
-//! shard counts; a merge names the round that waits for its rows; `oesweep slurm` refuses it by
-//! name.
+//! shard counts; a merge tells the round that waits with none of its cells (exit 3) from a round
+//! with cells missing (exit 1); `oesweep slurm` submits it round by round against a stand-in
+//! `sbatch`, each `--next-round` (what a merge job runs on exit 3) submitting the next round's
+//! array and merge until the search is finished, and stops without progress or at its bound.
 
 mod common;
 
@@ -130,20 +132,9 @@ fn a_search_stopped_after_any_of_its_rows_resumes_to_the_same_table() {
 }
 
 #[test]
-fn a_stopped_search_merges_to_its_next_round_and_slurm_refuses_it_by_name() {
+fn a_stopped_search_merges_to_its_next_round() {
     let dir = tempfile::tempdir().unwrap();
     let path = job(dir.path(), "coordinate");
-    let req = oesweep::slurm::SlurmRequest {
-        job: path.clone(),
-        shards: 2,
-        sbatch: None,
-        cpus_per_task: None,
-        sbatch_args: Vec::new(),
-        report: false,
-    };
-    let err = oesweep::slurm::commands(&req).unwrap_err();
-    assert!(err.is_bad_input(), "{err}");
-    assert!(err.to_string().contains("--shards 2: the job's coordinate search"), "{err}");
     // A run stopped before its first cell leaves a checkpoint whose merge names the first round...
     let watch = engine::Watch {
         stop: Arc::new(AtomicBool::new(true)),
@@ -154,11 +145,18 @@ fn a_stopped_search_merges_to_its_next_round_and_slurm_refuses_it_by_name() {
     let opts = RunOptions { quiet: true, watch: Some(watch), ..RunOptions::default() };
     let o = engine::run(&path, &opts, &|_| ()).unwrap();
     assert!(matches!(o.end, engine::RunEnd::Interrupted));
-    let m = engine::merge(&dir.path().join("out"), false, false).unwrap();
-    assert!(matches!(m.end, MergeEnd::Incomplete) && m.exit_code() == 1, "{m:?}");
-    let pending = m.search.and_then(|r| r.pending).expect("the round to run");
+    let out = dir.path().join("out");
+    let m = engine::merge(&out, false, false).unwrap();
+    assert!(matches!(m.end, MergeEnd::Incomplete) && m.exit_code() == engine::NEXT_ROUND, "{m:?}");
+    let pending = m.next_round().expect("the round to run, none of its cells there");
     assert_eq!((pending.round, pending.input), (1, 0));
     assert_eq!(pending.structures.len(), 4, "input 1's line through the start");
+    // One of its two shards run: cells are missing, not a round (exit 1, the other shard named).
+    let shard = Some(Shard { index: 0, count: 2 });
+    engine::run(&path, &RunOptions { quiet: true, shard, ..RunOptions::default() }, &|_| ()).unwrap();
+    let m = engine::merge(&out, false, false).unwrap();
+    assert!(m.next_round().is_none() && m.exit_code() == 1, "{m:?}");
+    assert_eq!(m.owners, Some((2, vec![1])));
     // ... and the run resumes it to the results of the rows it fitted.
     let opts = RunOptions { quiet: true, ..RunOptions::default() };
     let o = engine::run(&path, &opts, &|_| ()).unwrap();
@@ -212,7 +210,7 @@ fn a_search_sharded_round_by_round_merges_to_the_table_of_a_whole_run() {
                 assert_eq!(replayed, rounds, "N = {n}: the rounds of the whole run");
                 break;
             }
-            assert!(matches!(m.end, MergeEnd::Incomplete) && m.exit_code() == 1, "{m:?}");
+            assert!(matches!(m.end, MergeEnd::Incomplete) && m.exit_code() == engine::NEXT_ROUND, "{m:?}");
             let pending = replayed.pending.expect("the round the shards run next");
             assert!(merges.last().is_none_or(|&r| r < pending.round), "each round once: {merges:?}, {}", pending.round);
             assert_eq!(m.missing.pairs.len(), pending.structures.len(), "no row of the next round yet");
@@ -242,4 +240,96 @@ fn plan_says_which_search_runs_and_estimates_its_time() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("cells      128 Huber cells + 64 least-squares fits"), "{text}");
     assert!(!text.contains("search     coordinate"), "{text}");
+}
+
+#[test]
+fn slurm_submits_the_search_round_by_round_until_a_merge_finds_it_finished() {
+    let dir = tempfile::tempdir().unwrap();
+    let reference = job_with_output(dir.path(), "coordinate", "ref");
+    engine::run(&reference, &RunOptions { quiet: true, ..RunOptions::default() }, &|_| ()).unwrap();
+    let expected = cells(&dir.path().join("ref"));
+    let (path_env, log) = fake_sbatch(dir.path());
+    let slurm = |args: &[&str]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_oesweep"))
+            .arg("slurm")
+            .args(args)
+            .env("PATH", &path_env)
+            .output()
+            .unwrap();
+        let text = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+        (o.status.code(), text)
+    };
+    let shards = |job: &Path| {
+        for index in 0..2 {
+            let shard = Some(Shard { index, count: 2 });
+            engine::run(job, &RunOptions { quiet: true, threads: 1, shard, ..RunOptions::default() }, &|_| ()).unwrap();
+        }
+    };
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+
+    // Bad input: a product takes no bound; a merge script of the user's that does not go on.
+    let (code, text) = slurm(&[&s(&job_with_output(dir.path(), "product", "product")), "--shards=2", "--max-rounds=2"]);
+    assert_eq!(code, Some(2), "{text}");
+    let own = dir.path().join("own");
+    std::fs::create_dir(&own).unwrap();
+    std::fs::write(own.join("sweep.sbatch"), "#!/bin/bash\n").unwrap();
+    std::fs::write(own.join("merge.sbatch"), "#!/bin/bash\nexec oesweep merge \"$@\"\n").unwrap();
+    let (code, text) = slurm(&[&s(&job(dir.path(), "coordinate")), "--shards=2", "--sbatch", &s(&own)]);
+    assert!(code == Some(2) && text.contains("does not go on with a coordinate search"), "{text}");
+
+    // The bound: one array, then the next round is not submitted.
+    let bounded = job_with_output(dir.path(), "coordinate", "bounded");
+    let (code, text) = slurm(&[&s(&bounded), "--shards=2", "--max-rounds=1"]);
+    assert!(code == Some(0) && text.contains("at most 1 rounds"), "{text}");
+    shards(&bounded);
+    let (code, text) = slurm(&["--next-round", &s(&dir.path().join("bounded"))]);
+    assert!(code == Some(1) && text.contains("round 2 waits after 1 arrays, the most --max-rounds allows"), "{text}");
+
+    let path = job(dir.path(), "coordinate");
+    let out = dir.path().join("out");
+    let (code, text) = slurm(&[&s(&path), "--shards=2"]);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.contains("array of 2 shards: round 1 of the coordinate search") && text.contains("at most 30 rounds"));
+    let first = 4100 + std::fs::read_to_string(&log).unwrap().lines().count() - 1;
+    let mut rounds = vec![1];
+    loop {
+        shards(&path);
+        let (code, text) = slurm(&["--next-round", &s(&out)]);
+        assert_eq!(code, Some(0), "{text}");
+        if text.contains("the coordinate search is finished") {
+            break;
+        }
+        let round = oesweep::slurm::Loop::read(&out).unwrap().arrays.last().unwrap().round.unwrap();
+        assert!(text.contains(&format!("round {round} of the coordinate search: sweep job")), "{text}");
+        assert!(round > *rounds.last().unwrap() && rounds.len() < 30, "{rounds:?} then {round}");
+        rounds.push(round);
+        if rounds.len() == 2 {
+            // Before the array's shards ran, the round still waits: the loop stops rather than
+            // submit it again.
+            let (code, text) = slurm(&["--next-round", &s(&out)]);
+            let id = first + 2;
+            let stop =
+                format!("round {round} still waits after the array submitted for round {round} (Slurm job {id})");
+            assert!(code == Some(1) && text.contains(&stop), "{text}");
+        }
+    }
+    assert!(rounds.len() >= 2, "several rounds: {rounds:?}");
+    assert!(cells(&out) == expected, "the table of the rounds submitted differs from the whole run's");
+    // Each array of two shards, then its merge after it; the state lists them with Slurm's ids.
+    let calls: Vec<String> = std::fs::read_to_string(&log).unwrap().lines().map(str::to_string).collect();
+    let calls = &calls[first - 4101..];
+    assert_eq!(calls.len(), 2 * rounds.len(), "{calls:?}");
+    let state = oesweep::slurm::Loop::read(&out).unwrap();
+    for (i, (pair, array)) in calls.chunks(2).zip(&state.arrays).enumerate() {
+        let id = first + 2 * i;
+        assert!(
+            pair[0].contains("--array=0-1")
+                && pair[0].ends_with(&format!("{} 2", path.canonicalize().unwrap().display()))
+        );
+        assert!(
+            pair[1].contains(&format!("--dependency=afterok:{id}")) && pair[1].contains("merge.sbatch"),
+            "{pair:?}"
+        );
+        assert_eq!((array.round, array.sweep_job.clone()), (Some(rounds[i]), Some(id.to_string())));
+    }
 }

@@ -202,18 +202,7 @@ fn merge_names_missing_cells_and_partial_merges_what_there_is() {
 fn slurm_submits_the_array_then_a_merge_that_depends_on_it() {
     let dir = tempfile::tempdir().unwrap();
     let job = setup(dir.path(), "ls", [1, 1]);
-    // A stand-in sbatch: logs its arguments and $OESWEEP, answers like --parsable.
-    let fake = dir.path().join("bin");
-    std::fs::create_dir(&fake).unwrap();
-    let log = dir.path().join("sbatch.log");
-    let script = format!(
-        "#!/bin/sh\necho \"OESWEEP=$OESWEEP $*\" >> {log}\nn=$(wc -l < {log})\necho \"$((4100 + n));cluster\"\n",
-        log = log.display()
-    );
-    std::fs::write(fake.join("sbatch"), script).unwrap();
-    use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(fake.join("sbatch"), std::fs::Permissions::from_mode(0o755)).unwrap();
-    let path = format!("{}:{}", fake.display(), std::env::var("PATH").unwrap_or_default());
+    let (path, log) = common::fake_sbatch(dir.path());
     let o = bin()
         .args(["slurm", job.to_str().unwrap(), "--shards", "4", "--cpus-per-task", "2", "--sbatch-arg=--partition=x"])
         .env("PATH", path)
@@ -238,4 +227,9 @@ fn slurm_submits_the_array_then_a_merge_that_depends_on_it() {
     let tmpl = |n: &str| std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/slurm").join(n));
     assert_eq!(std::fs::read_to_string(out.join("slurm/sweep.sbatch")).unwrap(), tmpl("sweep.sbatch").unwrap());
     assert_eq!(std::fs::read_to_string(out.join("slurm/merge.sbatch")).unwrap(), tmpl("merge.sbatch").unwrap());
+    // A product is one array: no loop state, and no bound on rounds to take.
+    assert!(!out.join("slurm/search.json").exists());
+    let o = oesweep(&["slurm", job.to_str().unwrap(), "--shards", "4", "--max-rounds", "3", "--dry-run"]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("--max-rounds: the job runs the full product of its grid in one array"), "{}", text(&o));
 }

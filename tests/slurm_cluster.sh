@@ -2,7 +2,9 @@
 # A real Slurm cluster test: start a single-node Slurm on this machine from Debian's packages,
 # submit a small sweep with `oesweep slurm` (an array job of 4 shards plus a merge job that
 # depends on it), wait, and check that the merged table equals a single-process run of the same
-# job (every column bit for bit except `seconds`, and the same picks). The daemons it started
+# job (every column bit for bit except `seconds`, and the same picks); then a small coordinate
+# search of three inputs, which `oesweep slurm` submits round by round (each round's merge job
+# submits the next round's array and merge), checked the same way. The daemons it started
 # are stopped on exit, whatever happens.
 #
 # Needs root and apt-get (it installs slurmctld slurmd slurm-client munge when missing, ~10 s);
@@ -57,7 +59,7 @@ cleanup() {
     for pid in "${pids[@]}"; do wait "$pid" 2>/dev/null || true; done
     if [ "$status" -ne 0 ]; then
         echo "slurm_cluster: FAILED; logs:"
-        for f in "$work"/log/* "$work"/munge/munged.log "$work"/out/slurm/*.out; do
+        for f in "$work"/log/* "$work"/munge/munged.log "$work"/out/slurm/*.out "$work"/search/slurm/*.out; do
             [ -f "$f" ] && { echo "== $f"; tail -n 30 "$f"; }
         done
     fi
@@ -183,3 +185,54 @@ done
 cmp "$work/out/selection.json" "$work/ref/selection.json"
 [ ! -e "$work/out/parts" ] || { echo "slurm_cluster: the merge left the checkpoint"; exit 1; }
 echo "slurm_cluster: ok (merged table of 4 Slurm array tasks == single-process table, same picks)"
+
+# A coordinate search (METHOD.md 20), forced by grid.search: the three-input record of
+# tests/fixtures/miso/, nB and nF in 1..2 per input at the true delays, 2 k. `oesweep slurm`
+# submits round 1 (an array of 2 shards and its merge); each merge job that finds the next round
+# waiting submits that round's array and merge, until one finds the search finished and writes
+# the results. Every job it submits is in the queue before the job that submitted it ends, so
+# the loop is over when the queue is empty.
+cp "$repo/tests/fixtures/miso/three.csv" "$work/three.csv"
+for name in search search-ref; do
+    cat > "$work/$name.json" <<JOB
+{"name": "slurm-search", "data": {"path": "three.csv", "u": ["u1", "u2", "u3"], "y": "y", "ts": 1},
+ "delay": [1, 2, 0], "grid": {"nb": [1, 2], "nf": [1, 2], "k": [0.5, 1.345], "search": "coordinate"},
+ "offset": "none", "output": "$name"}
+JOB
+done
+t1=$(date +%s)
+(cd "$work" && "$bin" slurm "$work/search.json" --shards 2 --cpus-per-task 1)
+while :; do
+    # A failed query is not an empty queue.
+    if queue=$(squeue -h -o %i 2>/dev/null) && [ -z "$queue" ]; then break; fi
+    if [ $(($(date +%s) - t1)) -gt 300 ]; then
+        echo "slurm_cluster: the search's jobs not done after 300 s"
+        squeue || true
+        exit 1
+    fi
+    sleep 1
+done
+state="$work/search/slurm/search.json"
+sweeps=$(grep -o '"sweep_job": "[0-9]*"' "$state" | grep -o '[0-9]*')
+merges=$(grep -o '"merge_job": "[0-9]*"' "$state" | grep -o '[0-9]*')
+rounds=$(echo "$sweeps" | wc -l)
+echo "slurm_cluster: the search's $rounds rounds done in $(($(date +%s) - t1)) s (rounds $(grep -o '"round": [0-9]*' "$state" | grep -o '[0-9]*' | tr '\n' ' '))"
+[ "$rounds" -ge 2 ] || { echo "slurm_cluster: one round only"; cat "$state"; exit 1; }
+for id in $sweeps $merges; do
+    s=$(state_of "$id")
+    [ "$s" = "COMPLETED " ] || { echo "slurm_cluster: job $id ended $s"; scontrol show job "$id"; exit 1; }
+done
+for id in $sweeps; do
+    for i in 0 1; do
+        grep -q "shard $i/2" "$work/search/slurm/sweep-${id}_$i.out" \
+            || { echo "slurm_cluster: no log of shard $i/2 of array $id"; exit 1; }
+    done
+done
+last=$(echo "$merges" | tail -n 1)
+grep -q "results in" "$work/search/slurm/merge-$last.out" \
+    || { echo "slurm_cluster: the last merge job $last wrote no results"; exit 1; }
+"$bin" run "$work/search-ref.json" --threads "$cpus" --quiet >/dev/null
+"$same_cells" "$work/search/cells.parquet" "$work/search-ref/cells.parquet"
+cmp "$work/search/selection.json" "$work/search-ref/selection.json"
+[ ! -e "$work/search/parts" ] || { echo "slurm_cluster: the search's merge left the checkpoint"; exit 1; }
+echo "slurm_cluster: ok (coordinate search in $rounds Slurm rounds of 2 array tasks == single-process table, same picks)"

@@ -81,10 +81,11 @@ pub struct MergeArgs {
 #[derive(Args, Debug)]
 pub struct SlurmArgs {
     /// Job file (JSON).
-    pub job: PathBuf,
+    #[arg(required_unless_present = "next_round")]
+    pub job: Option<PathBuf>,
     /// Number of shards (array tasks).
-    #[arg(long)]
-    pub shards: usize,
+    #[arg(long, required_unless_present = "next_round")]
+    pub shards: Option<usize>,
     /// Folder holding your own `sweep.sbatch` and `merge.sbatch` [default: the templates of
     /// jobs/slurm/ built into oesweep, written to <output>/slurm/].
     #[arg(long, value_name = "DIR")]
@@ -101,6 +102,16 @@ pub struct SlurmArgs {
     /// Print the sbatch commands instead of running them.
     #[arg(long)]
     pub dry_run: bool,
+    /// A coordinate search: the most arrays (rounds) its merge jobs submit [default: 10 per
+    /// input].
+    #[arg(long, value_name = "R")]
+    pub max_rounds: Option<usize>,
+    /// Submit the next round of the coordinate search that `oesweep slurm` submitted into this
+    /// output folder, as its merge job does when `oesweep merge` exits 3.
+    #[arg(long, value_name = "FOLDER", conflicts_with_all = [
+        "job", "shards", "sbatch", "cpus_per_task", "sbatch_arg", "report", "dry_run", "max_rounds",
+    ])]
+    pub next_round: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]

@@ -14,13 +14,14 @@ macro_rules! out {
 }
 
 mod args;
+mod cluster;
 mod print;
 mod stdout;
 
 pub use args::*;
 
 use crate::data::ColumnRef;
-use crate::engine::{self, FitRequest, MergeEnd, RunEnd, RunOptions};
+use crate::engine::{self, FitRequest, RunEnd, RunOptions};
 use crate::error::{Error, Result};
 use crate::estimate::SolverOptions;
 use crate::shard;
@@ -108,8 +109,8 @@ pub fn run(cli: Cli) -> Result<u8> {
             outln!("wrote {}", page.display());
             Ok(0)
         }
-        Command::Merge(a) => run_merge(&a),
-        Command::Slurm(a) => run_slurm(&a),
+        Command::Merge(a) => cluster::run_merge(&a),
+        Command::Slurm(a) => cluster::run_slurm(&a),
         Command::Spectrum(a) => run_spectrum(&a),
         Command::Export(a) => run_export(&a),
     }
@@ -458,104 +459,4 @@ fn run_job(a: &RunArgs) -> Result<u8> {
         print_report(report)?;
     }
     Ok(code)
-}
-
-/// `oesweep merge` ([`engine::merge`]).
-fn run_merge(a: &MergeArgs) -> Result<u8> {
-    let out = &a.folder;
-    let m = engine::merge(out, a.partial, a.report)?;
-    if m.duplicates > 0 {
-        eprintln!("note: {} cells were saved twice (identical rows); each is kept once", m.duplicates);
-    }
-    if !m.missing.is_empty() {
-        let plan = m.plan.as_ref().expect("a merge that found missing cells has a plan");
-        eprintln!(
-            "{}: {} of {} cells and {} of {} least-squares fits are missing:",
-            out.display(),
-            m.missing.cells,
-            plan.n_cells(),
-            m.missing.ls,
-            plan.pairs.len()
-        );
-        for line in m.missing.lines(plan, 20) {
-            eprintln!("  {line}");
-        }
-        if let Some((n, owners)) = &m.owners {
-            eprintln!(
-                "  they belong to shard {} of {n}: run `oesweep run JOB --shard I/{n}` for each",
-                shard::ranges(owners)
-            );
-        }
-    }
-    match &m.end {
-        MergeEnd::AlreadyMerged => outln!("{}: already merged (no checkpoint left), nothing to do", out.display()),
-        MergeEnd::Incomplete => {
-            if let Some(p) = m.search.as_ref().and_then(|r| r.pending.as_ref()) {
-                eprintln!("the coordinate search goes on: {} waits for its rows", p.describe());
-            }
-            eprintln!(
-                "nothing written; rerun the missing shards and merge again, or merge what there is with --partial"
-            );
-            return Ok(m.exit_code());
-        }
-        MergeEnd::Merged { selection } => {
-            let plan = m.plan.as_ref().expect("merged from a plan");
-            let read: Vec<String> = m
-                .folders
-                .iter()
-                .map(|(d, n)| format!("{} ({n} parts)", d.file_name().unwrap_or_default().to_string_lossy()))
-                .collect();
-            outln!("merged {}", read.join(", "));
-            outln!(
-                "{}: {} of {} cells ({} failed) + {} of {} least-squares fits",
-                m.name,
-                m.huber,
-                plan.n_cells(),
-                m.failed,
-                m.ls,
-                plan.pairs.len()
-            );
-            print_gaps(selection.gaps.as_ref());
-            print_picks(selection);
-            print_rules(selection);
-            print_pick_bootstraps(selection);
-            for w in &selection.warnings {
-                eprintln!("warning: {w}");
-            }
-            outln!("results in {}", out.display());
-            if m.missing.is_empty() {
-                if let Some(e) = &m.cleanup {
-                    eprintln!("warning: {e}");
-                }
-            } else {
-                outln!("partial merge: the checkpoint is kept; merge again once the missing cells are done");
-            }
-        }
-    }
-    let code = m.exit_code();
-    print_report(m.report)?;
-    Ok(code)
-}
-
-/// `oesweep slurm` ([`crate::slurm::submit`]).
-fn run_slurm(a: &SlurmArgs) -> Result<u8> {
-    let req = crate::slurm::SlurmRequest {
-        job: a.job.clone(),
-        shards: a.shards,
-        sbatch: a.sbatch.clone(),
-        cpus_per_task: a.cpus_per_task,
-        sbatch_args: a.sbatch_arg.clone(),
-        report: a.report,
-    };
-    if a.dry_run {
-        let (sweep, merge) = crate::slurm::commands(&req)?;
-        outln!("OESWEEP={} sbatch {}", sweep.exe.display(), sweep.args.join(" "));
-        outln!("OESWEEP={} sbatch --dependency=afterok:<sweep job id> {}", merge.exe.display(), merge.args.join(" "));
-        return Ok(0);
-    }
-    let s = crate::slurm::submit(&req)?;
-    outln!("sweep job {} (array of {} shards)", s.sweep_id, a.shards);
-    outln!("merge job {} (starts when every shard succeeded)", s.merge_id);
-    outln!("results in {}, Slurm logs in {}", s.out.display(), s.logs.display());
-    Ok(0)
 }

@@ -60,14 +60,35 @@ pub struct MergeOutcome {
     pub search: Option<search::Rounds>,
 }
 
+/// The exit code of a merge that found a coordinate search waiting for its next round, none of
+/// whose cells is there yet: the shards have that round to run, not cells to rerun (README's
+/// reference; `jobs/slurm/merge.sbatch` submits the round on it).
+pub const NEXT_ROUND: u8 = 3;
+
 impl MergeOutcome {
-    /// 1 when cells are missing (without `partial`) or a cell of the table failed, else 0.
+    /// [`NEXT_ROUND`] when a coordinate search waits for a round none of whose cells is there
+    /// ([`MergeOutcome::next_round`]); 1 when cells are missing (without `partial`) or a cell
+    /// of the table failed; else 0.
     pub fn exit_code(&self) -> u8 {
         match self.end {
+            MergeEnd::Incomplete if self.next_round().is_some() => NEXT_ROUND,
             MergeEnd::Incomplete => 1,
             _ if self.failed > 0 => 1,
             _ => 0,
         }
+    }
+
+    /// The round a coordinate search waits for when the merge wrote nothing and none of the
+    /// round's cells or least-squares fits is there yet: every earlier round finished, the
+    /// shards' next round. None when the search is finished or merged, for a product, and for
+    /// a round some of whose cells are there (its shards ran: the rest are missing cells).
+    pub fn next_round(&self) -> Option<&search::Pending> {
+        if !matches!(self.end, MergeEnd::Incomplete) {
+            return None;
+        }
+        let pending = self.search.as_ref()?.pending.as_ref()?;
+        let round = self.plan.as_ref()?;
+        (self.missing.cells == round.n_cells() && self.missing.ls == round.pairs.len()).then_some(pending)
     }
 }
 

@@ -47,7 +47,7 @@ mod uncertainty;
 mod write;
 
 pub use export_model::{PickSpec, export_model};
-pub use merge::{MergeEnd, MergeOutcome, merge};
+pub use merge::{MergeEnd, MergeOutcome, NEXT_ROUND, merge};
 pub use single::{FitReport, FitRequest, fit, fit_arrays, simulate};
 pub use spectrum::{SpectrumReport, SpectrumRequest, spectrum, spectrum_arrays};
 

@@ -321,3 +321,21 @@ pub fn output_gaps(n: usize, share: f64, r: &mut Draws) -> Vec<usize> {
     }
     (0..n).filter(|&t| gone[t]).collect()
 }
+
+/// A stand-in `sbatch` in `dir/bin` for `oesweep slurm`: it logs `OESWEEP=$OESWEEP` and its
+/// arguments, one line per call, to `dir/sbatch.log` and answers as `--parsable` does
+/// (`id;cluster`, the ids 4101, 4102, .. in the order of the calls). Returns the PATH that finds
+/// it first, and the log.
+pub fn fake_sbatch(dir: &std::path::Path) -> (String, std::path::PathBuf) {
+    use std::os::unix::fs::PermissionsExt;
+    let bin = dir.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let log = dir.join("sbatch.log");
+    let script = format!(
+        "#!/bin/sh\necho \"OESWEEP=$OESWEEP $*\" >> {log}\nn=$(wc -l < {log})\necho \"$((4100 + n));cluster\"\n",
+        log = log.display()
+    );
+    std::fs::write(bin.join("sbatch"), script).unwrap();
+    std::fs::set_permissions(bin.join("sbatch"), std::fs::Permissions::from_mode(0o755)).unwrap();
+    (format!("{}:{}", bin.display(), std::env::var("PATH").unwrap_or_default()), log)
+}
