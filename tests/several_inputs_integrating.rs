@@ -1,7 +1,8 @@
 //! The integrating-plant test of several inputs (METHOD.md 7.3, 19): each input's path is tested
-//! on the output less the other inputs' outputs, so the input whose path integrates is the one
-//! named, whichever its place; a record without an integrator names none; `oesweep fit`'s
-//! warnings and a sweep's `selection.json` name the input by its column.
+//! on the output less the other inputs' outputs, with their paths' errors as columns of its
+//! regression, so the input whose path integrates is the one named, whichever its place; a
+//! record without an integrator names none; `oesweep fit`'s warnings and a sweep's
+//! `selection.json` name the input by its column.
 
 mod common;
 
@@ -54,17 +55,30 @@ fn fired(paths: [(&[f64], &[f64]); 2], n: usize, seed: u64) -> [bool; 2] {
     [fired(0), fired(1)]
 }
 
-/// On two records each. Not a rate: over 40 records of each case (seeds 1..=40) the input
-/// that integrates fires in 36 and 30, the other input falsely in 10 and 9 (the other path's
-/// fitted integrator, subtracted, leaves a drift of its gain error), and without an integrator
-/// 0 and 3 (METHOD.md 7.3).
+/// Twelve records of each case (seeds 1..=12): at most one of the 36 answered wrong (seed 8 of
+/// input 1's integrator, where input 2's test fires too). Not a rate: over 40 records of each
+/// case (seeds 1..=40, `cargo run --release --example several_inputs_integrating_mc`) the
+/// input that integrates fires on 40 and 39, the other input falsely on 0 and 1, and without an
+/// integrator on 0 and 0 (METHOD.md 7.3). The other inputs' paths as columns of each input's
+/// regression are what keeps the other input quiet: with their outputs only subtracted it
+/// fired falsely on 10 and 9 of 40, and 8 of these 36 records were answered wrong.
 #[test]
 fn the_input_whose_path_integrates_is_the_one_that_fires() {
-    for seed in [1, 3] {
-        assert_eq!(fired([STABLE, INTEGRATOR], 3000, seed), [false, true], "input 2 integrates, seed {seed}");
-        assert_eq!(fired([INTEGRATOR, SLOW], 3000, seed), [true, false], "input 1 integrates, seed {seed}");
-        assert_eq!(fired([STABLE, SLOW], 3000, seed), [false, false], "no integrator, seed {seed}");
+    let cases = [
+        ("input 2 integrates", [STABLE, INTEGRATOR], [false, true]),
+        ("input 1 integrates", [INTEGRATOR, SLOW], [true, false]),
+        ("no integrator", [STABLE, SLOW], [false, false]),
+    ];
+    let mut wrong = Vec::new();
+    for seed in 1..=12 {
+        for (case, paths, right) in cases {
+            let answer = fired(paths, 3000, seed);
+            if answer != right {
+                wrong.push(format!("{case}, seed {seed}: fired {answer:?}"));
+            }
+        }
     }
+    assert!(wrong.len() <= 1, "{wrong:?}");
 }
 
 /// One input's record is tested as before: the several-input entry point of one input is

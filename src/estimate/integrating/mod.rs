@@ -55,6 +55,11 @@
 //! stretch shorter than [`MIN_STRETCH`] is left out (its rows would hardly outnumber its
 //! nuisance columns). The judgement's drift statistic is over the observed residuals.
 //!
+//! Several inputs ([`pole_tests`], `several.rs`): each input is tested on its own one-input
+//! model, fitted by backfitting to the output less the other inputs' outputs, with the other
+//! inputs' paths as further columns of its regression ([`Others`]: their sensitivity signals,
+//! each its own instrument), so that the errors of their fits are estimated, not subtracted.
+//!
 //! What no test can do: a stable pole whose time constant is as long as the record or longer
 //! gives data that an integrator explains as well; there the test may fire and the fits lie on
 //! the boundary (METHOD.md 7.3 measures where).
@@ -154,74 +159,8 @@ pub fn pole_test(u: &[f64], y: &[f64], seams: &[usize], delay: usize) -> Option<
     let (u, y) = (&u[..head], &y[..head]);
     let stretches = Stretches::of(y, &head_seams(seams, head));
     let (u, y) = (stretches.take(u), stretches.take(y));
-    let (prob, fit) = fitted(&u, &y, &stretches.seams, delay)?;
-    test_poles(&prob, &fit)
-}
-
-/// Rounds of the several-input test: each input's fit to the output less the other inputs'
-/// contributions, input after input.
-const ROUNDS: usize = 3;
-
-/// The integrating-plant test of each input of a record of `m` inputs (`u` input after input,
-/// N samples each; `delays` one per input): one entry per input, None where its regressions
-/// are degenerate. One input is [`pole_test`]. Several (METHOD.md 7.3, 19): Young's refined IV
-/// of a model with a denominator per input, by backfitting: input i's one-input test model
-/// `A_i y_i = B_i u_i + c + v` is fitted to `y_i = y - sum_{j != i} x_j`, the output less the
-/// other inputs' noise-free outputs `x_j = (B_j/A_j) u_j` of their current fits (zero before
-/// their first), input after input, [`ROUNDS`] rounds; each input is then tested on its last
-/// fit as one input is. Another input's integrator is thus taken out of the output before input
-/// i is looked at (in `y` itself it is a drift that input i's low-order fit would put a pole
-/// at 1 for), and an input whose path integrates leaves A_i(1) = 0 however the others behave.
-pub fn pole_tests(u: &[f64], m: usize, y: &[f64], seams: &[usize], delays: &[usize]) -> Vec<Option<PoleTest>> {
-    assert_eq!((u.len(), delays.len()), (m * y.len(), m), "the inputs' columns and delays");
-    if m == 1 {
-        return vec![pole_test(u, y, seams, delays[0])];
-    }
-    let n = y.len();
-    let head = n.min(MAX_ROWS);
-    let seams = head_seams(seams, head);
-    let input = |i: usize| &u[i * n..i * n + head];
-    let y = &y[..head];
-    // Each input's fit on the stretches of observed outputs; the other inputs' outputs x_j
-    // simulated over the whole head (the inputs are complete), then taken to the stretches.
-    let stretches = Stretches::of(y, &seams);
-    let inputs: Vec<Vec<f64>> = (0..m).map(|i| stretches.take(input(i))).collect();
-    let mut taken = vec![Vec::new(); m];
-    // Each input's noise-free output x_i, and the output its last fit saw (y less the others').
-    let mut parts = vec![vec![0.0; head]; m];
-    let mut seen = vec![vec![0.0; head]; m];
-    let mut fits: Vec<Option<(Structure, IvFit)>> = (0..m).map(|_| None).collect();
-    for _ in 0..ROUNDS {
-        for i in 0..m {
-            for (t, v) in seen[i].iter_mut().enumerate() {
-                *v = y[t] - (0..m).filter(|&j| j != i).map(|j| parts[j][t]).sum::<f64>();
-            }
-            taken[i] = stretches.take(&seen[i]);
-            fits[i] = fitted(&inputs[i], &taken[i], &stretches.seams, delays[i]).map(|(prob, fit)| {
-                let whole = Problem { u: input(i), y, offset: false, seams: &seams, ..prob };
-                whole.simulate(&fit.model, &mut parts[i]);
-                (prob.structure, fit)
-            });
-            if fits[i].is_none() {
-                parts[i].iter_mut().for_each(|v| *v = 0.0);
-            }
-        }
-    }
-    fits.iter()
-        .enumerate()
-        .map(|(i, fit)| {
-            let (structure, fit) = fit.as_ref()?;
-            let prob = Problem {
-                u: &inputs[i],
-                y: &taken[i],
-                structure: *structure,
-                offset: true,
-                seams: &stretches.seams,
-                missing: &[],
-            };
-            test_poles(&prob, fit)
-        })
-        .collect()
+    let (prob, fit) = fitted(&u, &y, &stretches.seams, delay, &Others::none())?;
+    test_poles(&prob, &fit, &Others::none())
 }
 
 /// The seams of a record's first `head` samples.
@@ -231,18 +170,24 @@ fn head_seams(seams: &[usize], head: usize) -> Vec<usize> {
 
 /// The test's model of one input's record (its head): the order (nA = nB = 1 or 2) whose IV
 /// fit has the smaller BIC, each order from the better of its two starts.
-fn fitted<'a>(u: &'a [f64], y: &'a [f64], seams: &'a [usize], delay: usize) -> Option<(Problem<'a>, IvFit)> {
+fn fitted<'a>(
+    u: &'a [f64],
+    y: &'a [f64],
+    seams: &'a [usize],
+    delay: usize,
+    others: &Others,
+) -> Option<(Problem<'a>, IvFit)> {
     let fits: Vec<(Problem, IvFit)> = (1..=ORDER)
         .filter_map(|n| {
             let prob = Problem { u, y, structure: Structure::siso(n, n, delay), offset: true, seams, missing: &[] };
-            let from_arx = arx(&prob).and_then(|a| iv_fit(&prob, a[..2 * n].to_vec()));
+            let from_arx = arx(&prob).and_then(|a| iv_fit(&prob, a[..2 * n].to_vec(), others));
             let mut slow = vec![0.0; 2 * n];
             slow[0] = 1.0;
             slow[n..].copy_from_slice(&oe::poly_from_roots(&vec![(SLOW, 0.0); n]));
-            let best = match (from_arx, iv_fit(&prob, slow)) {
+            let best = match (from_arx, iv_fit(&prob, slow, others)) {
                 (Some(a), Some(b)) => {
                     let lags = lags(&prob);
-                    let under = |fit: &IvFit, on: &IvFit| scale_under(&prob, &fit.theta, &on.filter, lags);
+                    let under = |fit: &IvFit, on: &IvFit| scale_under(&prob, &fit.theta, &on.filter, lags, others);
                     if under(&b, &a) < under(&a, &a) && under(&b, &b) < under(&a, &b) { b } else { a }
                 }
                 (a, b) => a.or(b)?,
@@ -256,7 +201,7 @@ fn fitted<'a>(u: &'a [f64], y: &'a [f64], seams: &'a [usize], delay: usize) -> O
     fits.into_iter().nth(best)
 }
 
-/// The IV estimate `[b, a, F(1) c, nuisance]` (the regression's own coefficients, A not
+/// The IV estimate `[b, a, F(1) c, nuisance, others]` (the regression's own coefficients, A not
 /// stabilised), the model that simulated its instruments and the prefilter of its last pass,
 /// and the robust scale of its filtered equation errors over the rows used; `model` is its
 /// `[b, a]` with A stabilised (the noise-free output of several inputs' backfitting).
@@ -269,7 +214,7 @@ struct IvFit {
     rows: usize,
 }
 
-fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
+fn iv_fit(prob: &Problem, start: Vec<f64>, others: &Others) -> Option<IvFit> {
     let (n, d, nbf) = (prob.n(), prob.dim(), prob.one().nb + prob.one().nf);
     let lags = lags(prob);
     let rows = (0..n).filter(|&t| complete(prob, lags, t)).count();
@@ -283,7 +228,7 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
     let mut x = vec![0.0; n];
     let mut eps = vec![0.0; n];
     let mut scale = f64::INFINITY;
-    let dd = extended_dim(prob);
+    let dd = extended_dim(prob, others);
     let mut theta = vec![0.0; dd];
     let mut filter = model[prob.one().nb..].to_vec();
     capped(&mut filter);
@@ -299,7 +244,7 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
         // a plain slice per row, which the compiler vectorises across the columns (each
         // entry's sum over t in the same order as before).
         let mut m = vec![0.0; dd * (dd + 1)];
-        filtered_rows(prob, &x, &filter, lags, |t, phi, z| {
+        filtered_rows(prob, &x, &filter, lags, others, |t, phi, z| {
             let w = huber_weight(eps[t], scale);
             for (i, row) in m.chunks_exact_mut(dd + 1).enumerate() {
                 let zi = w * if i < d { z[i] } else { phi[i] };
@@ -315,7 +260,7 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
         if !theta.iter().all(|s| s.is_finite()) {
             return None;
         }
-        filtered_rows(prob, &x, &filter, lags, |t, phi, _| {
+        filtered_rows(prob, &x, &filter, lags, others, |t, phi, _| {
             eps[t] = phi[dd] - (0..dd).map(|c| phi[c] * theta[c]).sum::<f64>();
         });
         scale = robust_scale(&eps, |t| complete(prob, lags, t));
@@ -331,14 +276,14 @@ fn iv_fit(prob: &Problem, start: Vec<f64>) -> Option<IvFit> {
 /// with `G^T v = g`, `G = sum psi'(eps) z phi^T` at the fit's instruments and filter, and
 /// `v^T S v` the Newey-West long-run variance of the scalar `v^T z_t psi(eps_t)` (Bartlett
 /// weights up to lag `floor(4 (N/100)^(2/9))`): two passes, no d x d sum per lag.
-fn a_at_1_variance(prob: &Problem, fit: &IvFit) -> Option<f64> {
-    let (d, dd, lags) = (prob.dim(), extended_dim(prob), lags(prob));
+fn a_at_1_variance(prob: &Problem, fit: &IvFit, others: &Others) -> Option<f64> {
+    let (d, dd, lags) = (prob.dim(), extended_dim(prob, others), lags(prob));
     let x = Problem { offset: false, ..*prob }.simulate_vec(&fit.instruments);
     let cut = HUBER_K * fit.scale;
     let theta = &fit.theta;
     let eps = |phi: &[f64]| phi[dd] - (0..dd).map(|c| phi[c] * theta[c]).sum::<f64>();
     let mut g = Mat::<f64>::zeros(dd, dd);
-    filtered_rows(prob, &x, &fit.filter, lags, |_, phi, z| {
+    filtered_rows(prob, &x, &fit.filter, lags, others, |_, phi, z| {
         if eps(phi).abs() <= cut {
             for i in 0..dd {
                 let zi = if i < d { z[i] } else { phi[i] };
@@ -354,7 +299,7 @@ fn a_at_1_variance(prob: &Problem, fit: &IvFit) -> Option<f64> {
     let lag = (4.0 * (fit.rows as f64 / 100.0).powf(2.0 / 9.0)).floor().max(1.0) as usize;
     // The complete rows of an experiment are consecutive: one run of h per experiment.
     let (mut h, mut runs, mut start) = (Vec::with_capacity(fit.rows), Vec::new(), usize::MAX);
-    filtered_rows(prob, &x, &fit.filter, lags, |t, phi, z| {
+    filtered_rows(prob, &x, &fit.filter, lags, others, |t, phi, z| {
         if prob.experiment_start(t) != start {
             start = prob.experiment_start(t);
             runs.push(h.len());
@@ -381,14 +326,16 @@ fn long_run_sum<'h>(runs: impl Iterator<Item = &'h [f64]>, lag: usize) -> f64 {
     .sum()
 }
 
-/// The robust scale of the equation errors of `theta` filtered by `1/F`, the pulses left out:
-/// two fits compared on the same filter.
-fn scale_under(prob: &Problem, theta: &[f64], f: &[f64], lags: usize) -> f64 {
+/// The robust scale of the equation errors of `theta` filtered by `1/F`, the pulses left out
+/// (the other inputs' columns kept: they are part of the model): two fits compared on the same
+/// filter.
+fn scale_under(prob: &Problem, theta: &[f64], f: &[f64], lags: usize, others: &Others) -> f64 {
     let d = prob.dim();
-    let dd = extended_dim(prob);
+    let dd = extended_dim(prob, others);
     let mut abs = Vec::new();
-    filtered_rows(prob, prob.y, f, lags, |_, phi, _| {
-        abs.push((phi[dd] - (0..d).map(|c| phi[c] * theta[c]).sum::<f64>()).abs());
+    let model = (0..d).chain(dd - others.len(prob.one().nf)..dd);
+    filtered_rows(prob, prob.y, f, lags, others, |_, phi, _| {
+        abs.push((phi[dd] - model.clone().map(|c| phi[c] * theta[c]).sum::<f64>()).abs());
     });
     if abs.is_empty() {
         return f64::INFINITY;
@@ -426,11 +373,22 @@ fn complete(prob: &Problem, lags: usize, t: usize) -> bool {
 /// experiment, filtered (columns `d + nF k + j`): the filter's start from rest leaves in the
 /// filtered equation error a transient of the equation errors before it, which these columns
 /// span (for an integrator it never decays); then the steps of experiments 2.. (their own
-/// constants). Streams: no buffer grows with N.
-fn filtered_rows(prob: &Problem, x: &[f64], f: &[f64], lags: usize, mut each: impl FnMut(usize, &[f64], &[f64])) {
+/// constants); then the other inputs' columns of several inputs ([`Others`]), each its own
+/// instrument like the pulses and steps. Streams: no buffer grows with N.
+fn filtered_rows(
+    prob: &Problem,
+    x: &[f64],
+    f: &[f64],
+    lags: usize,
+    others: &Others,
+    mut each: impl FnMut(usize, &[f64], &[f64]),
+) {
     let (d, nf) = (prob.dim(), f.len());
-    let dd = extended_dim(prob);
+    let dd = extended_dim(prob, others);
     let pulses = nf * (prob.seams.len() + 1);
+    // The other inputs' columns come last: (signal, lag) of each.
+    let columns = others.columns(prob.one().nf);
+    let own = dd - columns.len();
     let m = dd + 1 + d;
     // The last nf filtered rows, newest first.
     let mut past = vec![0.0; nf.max(1) * m];
@@ -451,8 +409,10 @@ fn filtered_rows(prob: &Problem, x: &[f64], f: &[f64], lags: usize, mut each: im
                 regressor(prob, prob.y, t, c)
             } else if c < d + pulses {
                 f64::from(u8::from(c == d + nf * k + (t - start - lags)))
-            } else if c < dd {
+            } else if c < own {
                 f64::from(u8::from(c == d + pulses + k - 1))
+            } else if c < dd {
+                others.value(columns[c - own], t)
             } else if c == dd {
                 prob.y[t]
             } else {
@@ -468,10 +428,11 @@ fn filtered_rows(prob: &Problem, x: &[f64], f: &[f64], lags: usize, mut each: im
     }
 }
 
-/// Columns of the filtered regression: the model's d, nF pulses per experiment and a
-/// constant for each experiment after the first (experiments may sit at different levels).
-fn extended_dim(prob: &Problem) -> usize {
-    prob.dim() + (prob.one().nf + 1) * (prob.seams.len() + 1) - 1
+/// Columns of the filtered regression: the model's d, nF pulses per experiment, a constant
+/// for each experiment after the first (experiments may sit at different levels) and the other
+/// inputs' columns (none for one input).
+fn extended_dim(prob: &Problem, others: &Others) -> usize {
+    prob.dim() + (prob.one().nf + 1) * (prob.seams.len() + 1) - 1 + others.len(prob.one().nf)
 }
 
 /// `min(1, k s / |v|)`: the IRLS weight of Huber's psi (1 while there is no scale yet).
@@ -494,7 +455,7 @@ fn robust_scale(v: &[f64], complete: impl Fn(usize) -> bool) -> f64 {
 }
 
 /// The test of `fit`: A(1) against 0, reported at the slowest pole.
-fn test_poles(prob: &Problem, fit: &IvFit) -> Option<PoleTest> {
+fn test_poles(prob: &Problem, fit: &IvFit, others: &Others) -> Option<PoleTest> {
     let (nb, nf) = (prob.one().nb, prob.one().nf);
     let a = &fit.theta[nb..nb + nf];
     let poles = oe::poles(a);
@@ -503,7 +464,7 @@ fn test_poles(prob: &Problem, fit: &IvFit) -> Option<PoleTest> {
         .max_by(|&i, &j| poles[i].0.total_cmp(&poles[j].0))?;
     let pole = poles[slowest];
     let a_at_1 = 1.0 + a.iter().sum::<f64>();
-    let std = a_at_1_variance(prob, fit)?.sqrt();
+    let std = a_at_1_variance(prob, fit, others)?.sqrt();
     let (lo, hi) = (a_at_1 - Z95 * std, a_at_1 + Z95 * std);
     // R(1) = prod (1 - p_i) over the other poles (real for a conjugate pair).
     let rest = poles.iter().enumerate().filter(|&(i, _)| i != slowest).fold((1.0, 0.0), |acc: (f64, f64), (_, p)| {
@@ -518,7 +479,10 @@ fn test_poles(prob: &Problem, fit: &IvFit) -> Option<PoleTest> {
 }
 
 mod judged;
+mod several;
 pub use judged::{
     DRIFT_LEVEL, Judged, doubt, doubts, drift_statistic, input_doubt, input_name, input_radius, judged_by_residuals,
     residual_drift,
 };
+use several::Others;
+pub use several::pole_tests;
