@@ -16,7 +16,8 @@
 //! The lanes' models: the pair's least-squares fit on the record, lane l with its poles
 //! scaled by 1 - 0.002 l and its B by 1 + 0.01 l (different parameters, one structure).
 //!
-//! Run: `cargo bench --bench lanes` (about two minutes). Instruction counts, which the load of
+//! Run: `cargo bench --bench lanes` (about two minutes). The fastest of many single calls,
+//! interleaved: `LANES_BEST=1001 cargo bench --bench lanes`. Instruction counts, which the load of
 //! a shared machine does not move: `LANES_COUNT=20 LANES_ORDER=10,10 valgrind --tool=callgrind
 //! --toggle-collect='*lanes::count*' <the bench binary>`, then `callgrind_annotate --inclusive=yes`
 //! gives each `count::<L, KIND>` (valgrind lacks AVX-512, so four lanes run there as two
@@ -140,13 +141,14 @@ fn per_fit(bch: &mut criterion::Bencher, lanes: usize, mut run: impl FnMut()) {
     });
 }
 
-/// The bundled record and, per order, the lanes' starting point and gamma.
-fn setup() -> (Record, Vec<(usize, usize, Vec<f64>, f64)>) {
+/// The bundled record and, per order (those `keep` keeps), the lanes' starting point and gamma.
+fn setup(keep: impl Fn(usize, usize) -> bool) -> (Record, Vec<(usize, usize, Vec<f64>, f64)>) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_est.csv");
     let data = oesweep::data::read_record(&path, "u", "y").expect("bundled estimation data");
     let rec = Record { u: data.u, y: data.y };
     let pairs = ORDERS
         .iter()
+        .filter(|&&(nb, nf)| keep(nb, nf))
         .map(|&(nb, nf)| {
             let (theta, sigma) = least_squares(&rec, nb, nf);
             (nb, nf, theta, sigma)
@@ -156,7 +158,7 @@ fn setup() -> (Record, Vec<(usize, usize, Vec<f64>, f64)>) {
 }
 
 fn lanes(c: &mut Criterion) {
-    let (rec, pairs) = setup();
+    let (rec, pairs) = setup(|_, _| true);
     let n = rec.u.len();
     for (nb, nf, theta, sigma) in pairs {
         let lay = Layout::siso(nb, nf, DELAY);
@@ -206,6 +208,8 @@ fn config() -> Criterion {
 /// kind: 0 simulate_filtered, 1 iteration_ls, 2 iteration_huber).
 #[inline(never)]
 fn count<const L: usize, const KIND: u8>(rec: &Record, lay: &Layout, huber: Loss, batch: &mut [Fit], reps: usize) {
+    // L in the body keeps the lane counts' functions apart (identical bodies would be merged).
+    assert_eq!(batch.len(), L, "one batch of L fits");
     for _ in 0..reps {
         match KIND {
             0 => simulate(&rec.u, batch),
@@ -221,13 +225,10 @@ fn count<const L: usize, const KIND: u8>(rec: &Record, lay: &Layout, huber: Loss
 /// `LANES_ORDER=nb,nf` counts that order only (one order per valgrind run: the `count` symbols
 /// do not name the order).
 fn counting(reps: usize) {
-    let (rec, pairs) = setup();
-    let n = rec.u.len();
     let only = std::env::var("LANES_ORDER").ok();
+    let (rec, pairs) = setup(|nb, nf| only.as_ref().is_none_or(|o| *o == format!("{nb},{nf}")));
+    let n = rec.u.len();
     for (nb, nf, theta, sigma) in pairs {
-        if only.as_ref().is_some_and(|o| *o != format!("{nb},{nf}")) {
-            continue;
-        }
         let lay = Layout::siso(nb, nf, DELAY);
         let huber = Loss::Huber { gamma: sigma };
         macro_rules! each {
@@ -242,6 +243,43 @@ fn counting(reps: usize) {
     }
 }
 
+/// `LANES_BEST=runs cargo bench --bench lanes`: instead of criterion, every benchmark's work
+/// timed one call at a time, `runs` rounds with the lane counts and kinds interleaved in each,
+/// and the fastest call of each printed per fit: on a machine shared with other work, the
+/// fastest of many calls of some tens of microseconds is one no other process interrupted,
+/// where criterion's means and medians carry the load.
+fn best_of(runs: usize) {
+    let (rec, pairs) = setup(|_, _| true);
+    let n = rec.u.len();
+    for (nb, nf, theta, sigma) in pairs {
+        let lay = Layout::siso(nb, nf, DELAY);
+        let huber = Loss::Huber { gamma: sigma };
+        let mut batches: Vec<Vec<Fit>> = LANES.iter().map(|&l| fits(&theta, nb, nf, n, l)).collect();
+        let mut best = [[f64::INFINITY; 3]; LANES.len()];
+        for _ in 0..runs {
+            for (batch, best) in batches.iter_mut().zip(best.iter_mut()) {
+                for (kind, b) in best.iter_mut().enumerate() {
+                    let start = Instant::now();
+                    match kind {
+                        0 => simulate(&rec.u, batch),
+                        1 => _ = black_box(iteration(&rec, &lay, Loss::LeastSquares, batch)),
+                        _ => _ = black_box(iteration(&rec, &lay, huber, batch)),
+                    }
+                    *b = b.min(start.elapsed().as_secs_f64() / batch.len() as f64);
+                }
+            }
+        }
+        for (l, b) in LANES.iter().zip(&best) {
+            println!(
+                "OE({nb},{nf}) {l} lanes, per fit: simulate_filtered {:.1} us, iteration_ls {:.1} us, iteration_huber {:.1} us",
+                b[0] * 1e6,
+                b[1] * 1e6,
+                b[2] * 1e6
+            );
+        }
+    }
+}
+
 criterion_group! {
     name = benches;
     config = config();
@@ -249,6 +287,9 @@ criterion_group! {
 }
 
 fn main() {
+    if let Ok(runs) = std::env::var("LANES_BEST") {
+        return best_of(runs.parse().expect("LANES_BEST: a number of rounds"));
+    }
     match std::env::var("LANES_COUNT") {
         Ok(reps) => counting(reps.parse().expect("LANES_COUNT: a number of repetitions")),
         Err(_) => {

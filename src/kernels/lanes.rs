@@ -4,11 +4,13 @@
 //!
 //! Why: the `1/F` recursion is one serial chain of fused multiply-adds per sample, nF of them,
 //! and [`super::simulate_filtered`] runs a fit's two recursions (`(1/F) u` and `(1/F) yhat`,
-//! the second one block behind) in the two lanes of a 128-bit register: on a CPU with two
-//! FMA ports of 256 bits it is bound by those ports at half their width (nF >= 8) or by the
-//! FMA latency (smaller nF). Two fits fill a 256-bit register ([`Lane`]s `2`), four fill
-//! two of them, which the out-of-order core overlaps: per fit, half the multiply-add
-//! instructions of the one-fit kernel, and two independent chains to hide the latency.
+//! the second one block behind) in the two lanes of a 128-bit register. The chain cannot be
+//! reordered without changing the bits; what a wider register buys is more fits per
+//! instruction: two fits fill a 256-bit register (nF multiply-adds per sample for two fits
+//! where the one-fit kernel spends nF on one), four a 512-bit one. (Four in two 256-bit
+//! registers need twice the state, which AVX2's 16 registers do not hold at nF >= 5: measured
+//! slower per fit than two; without AVX-512 four lanes run as two pairs, `avx2_lanes.rs`.)
+//! docs/PERFORMANCE.md "Where the floor is" has the measurements.
 //!
 //! Same answers: slot `k < L` of the register runs lane k's `(1/F) u`, slot `L + k` its
 //! `(1/F) yhat`, and every slot does exactly the operations of the one-fit recursion
