@@ -141,8 +141,11 @@ fn per_fit(bch: &mut criterion::Bencher, lanes: usize, mut run: impl FnMut()) {
     });
 }
 
-/// The bundled record and, per order (those `keep` keeps), the lanes' starting point and gamma.
-fn setup(keep: impl Fn(usize, usize) -> bool) -> (Record, Vec<(usize, usize, Vec<f64>, f64)>) {
+/// An order pair, its least-squares fit (the lanes' starting point) and sigma (their gamma).
+type Pair = (usize, usize, Vec<f64>, f64);
+
+/// The bundled record and the pairs of the orders `keep` keeps.
+fn setup(keep: impl Fn(usize, usize) -> bool) -> (Record, Vec<Pair>) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/data/piezo_est.csv");
     let data = oesweep::data::read_record(&path, "u", "y").expect("bundled estimation data");
     let rec = Record { u: data.u, y: data.y };
