@@ -25,7 +25,12 @@ macro_rules! inv_f_dispatch {
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx2_lanes;
 mod generic;
+mod lanes;
+
+pub use lanes::Lane;
 
 /// Which build of the kernels a process runs. The two round differently (a fused multiply-add
 /// rounds once, a multiply and an add twice; four lanes sum in another order), so their tables
@@ -167,6 +172,44 @@ pub fn simulate_filtered(
     fir(b, delay, xu, yhat);
     xy.copy_from_slice(yhat);
     inv_f(f, xy);
+}
+
+/// [`simulate_filtered`] of several fits of one `nF` and delay on one record at once, each
+/// [`Lane`] with its own B and F: every lane's `xu`, `yhat` and `xy` are those of
+/// [`simulate_filtered`] with its polynomials, bit for bit (`kernels/lanes.rs` says why they
+/// can be). Lanes go four at a time, then two, then one; orders the lane kernel does not
+/// specialise (nF = 0 or nF > 24) go one at a time.
+pub fn simulate_filtered_lanes(delay: usize, u: &[f64], lanes: &mut [Lane]) {
+    let n = u.len();
+    let nf = lanes.first().map_or(0, |l| l.f.len());
+    assert!(
+        lanes.iter().all(|l| l.f.len() == nf && l.xu.len() == n && l.yhat.len() == n && l.xy.len() == n),
+        "lanes of one nF, signals as long as the record"
+    );
+    let mut rest = lanes;
+    while !rest.is_empty() {
+        let take = match rest.len() {
+            4.. => 4,
+            2 | 3 => 2,
+            _ => 1,
+        };
+        let (group, tail) = rest.split_at_mut(take);
+        rest = tail;
+        if take > 1 {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the CPU supports AVX2 and FMA, and the lanes are checked above.
+            if has_fma() && unsafe { avx2_lanes::simulate_filtered_lanes(delay, u, group, true) } {
+                continue;
+            }
+            // SAFETY: the lanes are checked above.
+            if !has_fma() && unsafe { lanes::simulate_filtered(delay, u, group) } {
+                continue;
+            }
+        }
+        for l in group {
+            simulate_filtered(l.b, l.f, delay, u, l.xu, l.yhat, l.xy);
+        }
+    }
 }
 
 #[cfg(test)]
