@@ -18,17 +18,9 @@ use faer::linalg::solvers::DenseSolveCore;
 use oesweep::estimate::{self, Judge, Loss, Problem, SolverOptions, Workspace, evidence};
 use oesweep::oe;
 
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (a, b) = (self.next().max(1e-300), self.next());
-        (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-    }
-}
+mod common;
+
+use common::Lcg;
 
 fn poly(pairs: &[(f64, f64)], real: &[f64]) -> Vec<f64> {
     oesweep::oe::poly_from_poles(pairs, real)
@@ -99,15 +91,7 @@ fn input(kind: &str, n: usize, seed: u64) -> Vec<f64> {
         }
         _ => {
             let hold: usize = std::env::var("HOLD").ok().and_then(|v| v.parse().ok()).unwrap_or(1);
-            let mut v = 0.0;
-            (0..n)
-                .map(|t| {
-                    if t % hold == 0 {
-                        v = if r.next() < 0.5 { -1.0 } else { 1.0 };
-                    }
-                    v
-                })
-                .collect()
+            common::binary(n, hold, -1.0, 1.0, &mut r)
         }
     }
 }

@@ -16,17 +16,9 @@ use oesweep::engine::{self, RunEnd, RunOptions};
 use oesweep::estimate::integrating::pole_test;
 use oesweep::oe;
 
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (a, b) = (self.next().max(1e-300), self.next());
-        (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-    }
-}
+mod common;
+
+use common::{Lcg, binary};
 
 /// A plant of the study: a linear OE model `q^-1 B/F`, or the nonlinear tanks.
 enum Plant {
@@ -130,18 +122,6 @@ fn tanks(u: &[f64]) -> Vec<f64> {
             x2 += k2 / k1 * out1 + over / 3.0 - k3 * x2.max(0.0).sqrt();
             x2 = x2.min(10.0);
             x2
-        })
-        .collect()
-}
-
-fn binary(n: usize, hold: usize, lo: f64, hi: f64, rng: &mut Lcg) -> Vec<f64> {
-    let mut v = lo;
-    (0..n)
-        .map(|t| {
-            if t % hold == 0 {
-                v = if rng.next() < 0.5 { lo } else { hi };
-            }
-            v
         })
         .collect()
 }

@@ -12,30 +12,13 @@
 use oesweep::estimate::integrating::pole_tests;
 use oesweep::oe;
 
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (a, b) = (self.next().max(1e-300), self.next());
-        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
-    }
-}
+mod common;
+
+use common::Lcg;
 
 /// The test's input: +-1, each level held `hold` samples (`tests/common`'s `binary_input`).
 fn binary_input(n: usize, hold: usize, seed: u64) -> Vec<f64> {
-    let mut r = Lcg(seed);
-    let mut v = 0.0;
-    (0..n)
-        .map(|t| {
-            if t % hold == 0 {
-                v = if r.next() < 0.5 { -1.0 } else { 1.0 };
-            }
-            v
-        })
-        .collect()
+    common::binary(n, hold, -1.0, 1.0, &mut Lcg(seed))
 }
 
 type Path = (&'static [f64], &'static [f64]);
