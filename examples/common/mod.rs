@@ -1,4 +1,4 @@
-//! What the Monte Carlo examples share (examples cannot use `tests/common`): a small, fully
+//! What the Monte Carlo examples share (and tests/common includes by path): a small, fully
 //! specified random source, so their counts are the same on every machine, and the random
 //! binary input they drive their plants with.
 

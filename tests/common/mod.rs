@@ -17,31 +17,14 @@ pub fn cannot_run(why: &str) {
     eprintln!("SKIPPED: {why}");
 }
 
-/// Deterministic uniform numbers in [0, 1) (64-bit LCG; only for test signals).
-pub struct Lcg(pub u64);
-impl Lcg {
-    pub fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    pub fn normal(&mut self) -> f64 {
-        let (a, b) = (self.next().max(1e-300), self.next());
-        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
-    }
-}
+// The LCG and the binary input of the Monte Carlo examples: one home for both.
+#[path = "../../examples/common/mod.rs"]
+mod shared;
+pub use shared::Lcg;
 
 /// Random binary (+/-amp) input that holds each level for `hold` samples.
 pub fn binary_input(n: usize, hold: usize, amp: f64, seed: u64) -> Vec<f64> {
-    let mut r = Lcg(seed);
-    let mut v = 0.0;
-    (0..n)
-        .map(|t| {
-            if t % hold == 0 {
-                v = if r.next() < 0.5 { -amp } else { amp };
-            }
-            v
-        })
-        .collect()
+    shared::binary(n, hold, -amp, amp, &mut Lcg(seed))
 }
 
 /// F with the given poles, as (radius, angle) pairs (each a conjugate pair) plus real poles.
