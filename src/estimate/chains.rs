@@ -5,7 +5,7 @@
 //! outcomes into rows.
 
 pub use super::fit::PairProblem;
-use super::fit::{HuberFit, Judge, LsFit, StartKind, huber_from_solution};
+use super::fit::{HuberFit, Judge, LsFit, StartKind, huber_from_solution, judged};
 use super::huber::Loss;
 use super::least_squares::exploration_head;
 use super::options::{SolverOptions, Termination};
@@ -363,9 +363,14 @@ pub fn walk_pair(
     let whole = pair;
     let head = exploration_head(pair.prob, pair.opts);
     let on_head = head.is_some();
-    let head_judge = Judge { criterion_only: true, ..Judge::default() };
-    let head_pair = head.as_ref().map(|prob| PairProblem { prob, judge: &head_judge, ..*pair });
-    let pair = head_pair.as_ref().unwrap_or(pair);
+    // The walk fits for the criterion only, and each cell's final fit is judged once at the end
+    // (`judged`): the backward pass, the top cell and the boundary probe replace cells.
+    let walk_judge = Judge { criterion_only: true, ..Judge::default() };
+    let walk_pair = match &head {
+        Some(prob) => PairProblem { prob, judge: &walk_judge, ..*pair },
+        None => PairProblem { judge: &walk_judge, ..*pair },
+    };
+    let pair = &walk_pair;
     let mut chains = Chains::new(theta_ls, alternatives);
     let mut walk = ChainWalk::default();
     let mut seconds = Vec::with_capacity(ks.len());
@@ -424,7 +429,15 @@ pub fn walk_pair(
                     Err(e) => CellOutcome::Panicked(format!("Huber fit panicked: {}", panic_message(e))),
                 }
             }
-            Some((fit, start)) => CellOutcome::Fit { fit: Box::new(fit), start, seconds: seconds[i] + extra[i] },
+            Some((fit, start)) => {
+                let t = Instant::now();
+                let fit = catch_unwind(AssertUnwindSafe(|| judged(whole.prob, fit, whole.judge, ws)));
+                let seconds = seconds[i] + extra[i] + t.elapsed().as_secs_f64();
+                match fit {
+                    Ok(fit) => CellOutcome::Fit { fit: Box::new(fit), start, seconds },
+                    Err(e) => CellOutcome::Panicked(format!("Huber fit panicked: {}", panic_message(e))),
+                }
+            }
             None => CellOutcome::Panicked(panic.unwrap_or_else(|| "Huber fit panicked".into())),
         };
         if !done[i] {

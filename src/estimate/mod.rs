@@ -60,6 +60,7 @@ pub mod solver;
 pub mod workspace;
 
 pub use chains::{ChainWalk, Chains, fit_huber_multi, fit_huber_starts};
+pub(crate) use fit::judged;
 pub use fit::{
     Assessment, HuberFit, Judge, LsFit, PairProblem, StartKind, embed, fit_huber, fit_ls_from, fit_percent, theta_of,
 };

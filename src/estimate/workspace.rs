@@ -101,6 +101,20 @@ impl Workspace {
         &self.yhat
     }
 
+    /// Makes `theta` the workspace's solution as the solver's own fused pass leaves it
+    /// ([`Problem::simulate_filtered`], offset added): the same bits as the buffers of a
+    /// minimisation (Levenberg-Marquardt) that ended at `theta`, so a fit judged after other
+    /// fits ran is judged exactly as one judged straight away ([`super::fit::judged`]).
+    pub(crate) fn solver_state(&mut self, prob: &Problem, theta: &[f64]) {
+        let n = prob.n();
+        self.yhat.resize(n, 0.0);
+        for v in [&mut self.xu, &mut self.xy] {
+            v.resize(prob.m() * n, 0.0);
+        }
+        prob.simulate_filtered(theta, &mut self.xu, &mut self.yhat, &mut self.xy);
+        super::problem::add_offset(&mut self.yhat, prob.offset_of(theta));
+    }
+
     /// Makes `theta` the workspace's solution: its output ([`Problem::simulate`]) and the
     /// Jacobian signals `xu`, `xy` (for another solution than the last minimisation's).
     pub(crate) fn resimulate(&mut self, prob: &Problem, theta: &[f64]) {
@@ -110,8 +124,7 @@ impl Workspace {
             v.resize(prob.m() * n, 0.0);
         }
         if prob.m() > 1 {
-            prob.simulate_filtered(theta, &mut self.xu, &mut self.yhat, &mut self.xy);
-            super::problem::add_offset(&mut self.yhat, prob.offset_of(theta));
+            self.solver_state(prob, theta);
             return;
         }
         prob.simulate(theta, &mut self.yhat);

@@ -74,18 +74,19 @@ pub(super) fn check_cell<'r>(
     let t = Instant::now();
     // A panic (in the numerics, or an edited row's parameters that do not embed) keeps the cell
     // as the walk left it.
+    // Fitted for its criterion, judged only when it replaces the cell (most refits do not).
     let fit = catch_unwind(AssertUnwindSafe(|| {
         let start = crate::plan::embed(&ctx.theta(sub), &sub.key.structure(), &pair, prob.offset);
         workspaces.with(|ws| {
             ws.role = Role::Back;
-            estimate::fit_huber(&prob, sigma, plan.ks[k_index], &start, judge, &warm, ws)
+            let criterion_only = Judge { criterion_only: true, ..Judge::default() };
+            let fit = estimate::fit_huber(&prob, sigma, plan.ks[k_index], &start, &criterion_only, &warm, ws);
+            (fit.criterion < w).then(|| estimate::judged(&prob, fit, judge, ws))
         })
     }))
-    .ok()?;
-    (fit.criterion < w).then(|| {
-        let seconds = row.fit.seconds + t.elapsed().as_secs_f64();
-        ctx.with_offset(CellRow::from_huber(&fit, &pair, sigma, k_index, StartKind::Nested, seconds))
-    })
+    .ok()??;
+    let seconds = row.fit.seconds + t.elapsed().as_secs_f64();
+    Some(ctx.with_offset(CellRow::from_huber(&fit, &pair, sigma, k_index, StartKind::Nested, seconds)))
 }
 
 /// Refit every Huber cell of `rows` whose sub-model's cell at the same k has a lower W, warm from
