@@ -46,6 +46,7 @@ pub mod huber;
 pub mod initial_guess;
 pub mod initial_state;
 pub mod integrating;
+pub mod jacobian_r;
 pub mod layout;
 pub mod least_squares;
 pub mod linalg;
