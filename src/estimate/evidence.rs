@@ -283,7 +283,7 @@ fn covariance_of(
         // A unit-diagonal matrix has max_i inv_ii >= 1/(d lambda_min) and <= 1/lambda_min:
         // the diagonal of the inverse bounds the condition the Cholesky inverse had to face.
         Some(inv) if (0..d).all(|i| inv[(i, i)] <= COND_LIMIT) => (0..d * d).map(|ij| inv[(ij / d, ij % d)]).collect(),
-        _ => qr_inverse(prob, xu, xy, &scale)?,
+        _ => qr_inverse(prob, xu, xy, &scale, a.as_ref())?,
     };
     Some((0..d * d).map(|ij| inv[ij] / (scale[ij / d] * scale[ij % d]) * kappa / n as f64).collect())
 }

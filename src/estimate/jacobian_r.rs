@@ -6,7 +6,7 @@
 //! solver's signals `xu`, `xy`, never as one N x d matrix.
 //!
 //! **Shifted CholeskyQR3** (Fukaya, Kannan, Nakatsukasa, Yamamoto, Yanagisawa, SIAM J. Sci.
-//! Comput. 42 (2020) A477-A503), three passes over the rows:
+//! Comput. 42 (2020) A477-A503):
 //!
 //! ```text
 //! 1. G1 = J^T J,     R1 = chol(G1 + s I),   s = 11 (N d + d (d + 1)) u ||J||_F^2
@@ -15,13 +15,16 @@
 //! ```
 //!
 //! (u the unit roundoff, `||J||_F^2 = trace G1 >= ||J||_2^2`, which only enlarges the shift.)
+//! `G1` is the unit-diagonal matrix `A` the evidence formed for its Cholesky inverse (from the
+//! normal equations, METHOD.md 3: `J_s^T J_s` up to rounding well below the shift), so step 1
+//! reads no row: two passes over the record, each building its blocks of `J_s` again.
 //! The shift makes step 1's Cholesky succeed up to `cond(J) ~ 1/u`; `Q1` then has a condition
 //! of at most ~`u^-1/2`, which the two unshifted steps (CholeskyQR2) orthogonalise to `O(u)`:
 //! `R` is the factor of `J + dJ`, `||dJ|| = O(u) ||J||`, as Householder's is, so the inverse
 //! moves by `O(u cond(J))` relative to its norm. Every step is a product, a triangular solve or
-//! a d x d Cholesky (faer at GEMM rate, [`crate::dense`]), 3 N d^2 flops each for the Gram
-//! matrices and the solves: on the paper grid's 5000 x 20 Jacobians a few times cheaper than
-//! faer's Householder QR, which runs far below GEMM rate at this tall, narrow shape.
+//! a d x d Cholesky (faer, [`crate::dense`]): 2 N d^2 flops per Gram matrix, N d^2 per
+//! triangular solve (two Gram matrices, three solves), cheaper than faer's Householder QR
+//! (2 N d^2 flops), which runs far below the rate of its products at this tall, narrow shape.
 //!
 //! When a Cholesky fails (`cond(J)` beyond ~`1/u`: parameters the data all but do not
 //! determine), `R` is the Householder QR's of blocks of rows stacked under the R so far
@@ -87,7 +90,7 @@ impl<'a> ScaledJacobian<'a> {
     }
 
     /// `sum_blocks B^T B` of the blocks `B` of rows, each first divided on the right by
-    /// `L_1^T`, then `L_2^T`, ... (`Q = J R_1^-1 R_2^-1 ...`).
+    /// `L_1^T`, then `L_2^T`, ... (`Q = J R_1^-1 R_2^-1 ...`): one pass over the record.
     fn gram(&self, divide: &[&Llt], block: &mut Mat<f64>) -> Mat<f64> {
         let d = self.factor.len();
         let mut g = Mat::zeros(d, d);
@@ -103,18 +106,15 @@ impl<'a> ScaledJacobian<'a> {
         g
     }
 
-    /// `L = R^T` by shifted CholeskyQR3; None when one of its Cholesky factorisations fails.
-    fn cholesky_qr3(&self) -> Option<Mat<f64>> {
+    /// `L = R^T` by shifted CholeskyQR3 from `G1 = J_s^T J_s` (`g1`, lower triangle read);
+    /// None when one of its Cholesky factorisations fails.
+    fn cholesky_qr3(&self, g1: MatRef<'_, f64>) -> Option<Mat<f64>> {
         let d = self.factor.len();
         let n = self.rows();
-        let mut block = Mat::zeros(ROWS.min(n), d);
-        let mut g1 = self.gram(&[], &mut block);
         let norm2: f64 = (0..d).map(|i| g1[(i, i)]).sum();
         let shift = 11.0 * (n * d + d * (d + 1)) as f64 * (f64::EPSILON / 2.0) * norm2;
-        for i in 0..d {
-            g1[(i, i)] += shift;
-        }
-        let l1 = Llt::new(g1.as_ref())?;
+        let l1 = Llt::new(Mat::from_fn(d, d, |i, j| g1[(i, j)] + if i == j { shift } else { 0.0 }).as_ref())?;
+        let mut block = Mat::zeros(ROWS.min(n), d);
         let l2 = Llt::new(self.gram(&[&l1], &mut block).as_ref())?;
         let l3 = Llt::new(self.gram(&[&l1, &l2], &mut block).as_ref())?;
         // R = R3 R2 R1, so L = R^T = L1 L2 L3.
@@ -140,10 +140,17 @@ impl<'a> ScaledJacobian<'a> {
 }
 
 /// `(J_s^T J_s)^-1` (d x d, row-major) of the Jacobian with columns scaled by
-/// `1 / (scale sqrt(N_O))`, as `R^-1 R^-T`; None when R is singular.
-pub(super) fn qr_inverse(prob: &Problem, xu: &[f64], xy: &[f64], scale: &[f64]) -> Option<Vec<f64>> {
+/// `1 / (scale sqrt(N_O))`, as `R^-1 R^-T`; `a` is `J_s^T J_s` as the normal equations formed
+/// it (unit diagonal; lower triangle read). None when R is singular.
+pub(super) fn qr_inverse(
+    prob: &Problem,
+    xu: &[f64],
+    xy: &[f64],
+    scale: &[f64],
+    a: MatRef<'_, f64>,
+) -> Option<Vec<f64>> {
     let jac = ScaledJacobian::new(prob, xu, xy, scale);
-    let l = jac.cholesky_qr3().unwrap_or_else(|| jac.householder().transpose().to_owned());
+    let l = jac.cholesky_qr3(a).unwrap_or_else(|| jac.householder().transpose().to_owned());
     inverse(l.as_ref(), prob.dim())
 }
 
@@ -219,14 +226,14 @@ mod tests {
             let chol = Llt::new(a.as_ref()).expect("well conditioned").inverse();
             let chol: Vec<f64> = (0..d * d).map(|ij| chol[(ij / d, ij % d)]).collect();
             let jac = ScaledJacobian::new(&prob, &xu, &xy, &scale);
-            let cq = jac.cholesky_qr3().expect("well conditioned");
+            let cq = jac.cholesky_qr3(a.as_ref()).expect("well conditioned");
             for (method, l) in [("CholeskyQR3", cq.clone()), ("Householder", jac.householder().transpose().to_owned())]
             {
                 let qr = inverse(l.as_ref(), d).expect("full rank");
                 let diff = max_rel_diff(&qr, &chol);
                 assert!(diff <= 1e-12, "seams {seams:?}, {} missing, {method}: {diff:e}", missing.len());
             }
-            assert_eq!(qr_inverse(&prob, &xu, &xy, &scale), inverse(cq.as_ref(), d));
+            assert_eq!(qr_inverse(&prob, &xu, &xy, &scale, a.as_ref()), inverse(cq.as_ref(), d));
         }
     }
 
@@ -272,7 +279,7 @@ mod tests {
             let (xu, xy, scale, a) = signals(&prob, &theta_of(b, f, None));
             let d = prob.dim();
             let jac = ScaledJacobian::new(&prob, &xu, &xy, &scale);
-            let cq = jac.cholesky_qr3().expect("shifted CholeskyQR3 up to cond(J_s) ~ 1/u");
+            let cq = jac.cholesky_qr3(a.as_ref()).expect("shifted CholeskyQR3 up to cond(J_s) ~ 1/u");
             let cq = inverse(cq.as_ref(), d).expect("full rank");
             let hh = inverse(jac.householder().transpose(), d).expect("full rank");
             let largest = |m: &Mat<f64>| dense::symmetric_eigen(m.as_ref()).expect("symmetric").0[d - 1];
