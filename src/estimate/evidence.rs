@@ -17,8 +17,9 @@
 //! The inverse is the Cholesky inverse of the formed, diagonally scaled Gram matrix `A` (unit
 //! diagonal) when `max_i (A^-1)_ii <= 1e11` ([`COND_LIMIT`]); above, forming `A` has squared a
 //! condition that rounding no longer survives, and the inverse is `R^-1 R^-T` from the
-//! triangular factor of the scaled Jacobian, `J_s = Q R` (blocked Householder QR, O(N d^2)),
-//! whose rounding error grows with `cond(J_s)` instead of `cond(J_s)^2` ([`qr_inverse`]).
+//! triangular factor of the scaled Jacobian, `J_s = Q R` (shifted CholeskyQR3 started from `A`,
+//! two passes over the rows, Householder QR where it fails; O(N d^2)), whose rounding error
+//! grows with `cond(J_s)` instead of `cond(J_s)^2` ([`super::jacobian_r`]).
 //!
 //! **Residual tests** (whiteness, independence from the input): [`super::residual_tests`].
 //!
@@ -296,9 +297,11 @@ fn covariance_of(
 /// itself (the lightly damped OE(12,12) of `tests/covariance_large.rs`, condition 6e15: the
 /// factorisation failed in 59 of 100 realisations and the std was otherwise a median 0.48 of
 /// the spread, METHOD.md 10). Below the limit the numbers are those of the formed matrix, as
-/// before; at 1e8 the QR path ran for most high orders of the paper grid and cost 28 % of its
-/// time (`jobs/paper-grid.json`, 7.4 s against 5.8 s), at 1e11 it costs 4 % (6.1 s) and
-/// `tests/same_table.rs` keeps its numbers bit for bit.
+/// before, and `tests/same_table.rs` keeps its numbers bit for bit. At 1e8 the QR path ran for
+/// most high orders of the paper grid (`jobs/paper-grid.json`) and cost 28 % of its time; at
+/// 1e11 it takes 1348 of the grid's 5164 evidence calls. Their cost, in interleaved runs of
+/// an instrumented build on a loaded machine (2 threads): blocked Householder QR (785b7cd) 3.5
+/// and 3.9 s, 2.6-2.9 ms a call; shifted CholeskyQR3 (2900eb1) 2.0 and 2.2 s, 1.5-1.6 ms.
 const COND_LIMIT: f64 = 1e11;
 
 /// `|G(e^{jw})|` of the model (b, f, delay) and its standard deviation from `cov` (of
