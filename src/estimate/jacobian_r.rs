@@ -211,7 +211,8 @@ mod tests {
     /// matrix, also on a record of several experiments with an offset and with missing
     /// outputs: the rows have no lag across a seam, as the summed normal equations have not
     /// (which `tests/experiments.rs` checks against an explicit Jacobian), and a missing
-    /// output's row is left out, as the weighted normal equations leave it out.
+    /// output's row is left out, as the weighted normal equations leave it out; and where
+    /// shifted CholeskyQR3 fails, the inverse is Householder's.
     #[test]
     fn the_qr_inverse_is_the_cholesky_inverse_across_seams() {
         let n = 3000;
@@ -234,6 +235,10 @@ mod tests {
                 assert!(diff <= 1e-12, "seams {seams:?}, {} missing, {method}: {diff:e}", missing.len());
             }
             assert_eq!(qr_inverse(&prob, &xu, &xy, &scale, a.as_ref()), inverse(cq.as_ref(), d));
+            // Where a Cholesky factorisation fails (here step 1's, of a matrix that is not
+            // positive definite), R is Householder's.
+            let householder = inverse(jac.householder().transpose(), d);
+            assert_eq!(qr_inverse(&prob, &xu, &xy, &scale, (-&a).as_ref()), householder);
         }
     }
 
