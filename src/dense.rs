@@ -46,6 +46,17 @@ fn split_in_place(mut packed: MatMut<'_, f64>) -> Mat<f64> {
     upper
 }
 
+/// `dst += a^T a`.
+pub fn gram_add(dst: MatMut<'_, f64>, a: MatRef<'_, f64>) {
+    linalg::matmul::matmul(dst, Accum::Add, a.transpose(), a, 1.0, SEQ);
+}
+
+/// `a <- a L^-T` for a lower triangular `L` (the rows of `a` solved against `L^T`: `a`'s
+/// transpose against `L`).
+pub fn solve_right_lower_transpose_in_place(a: MatMut<'_, f64>, l: MatRef<'_, f64>) {
+    linalg::triangular_solve::solve_lower_triangular_in_place(l, a.transpose_mut(), SEQ);
+}
+
 /// LU of a square matrix with partial pivoting.
 pub struct Lu {
     l: Mat<f64>,
@@ -136,6 +147,18 @@ impl Llt {
             }
         }
         Some(Llt { l })
+    }
+
+    /// The Cholesky factor of `l l^T`: `l` lower triangular with a nonzero diagonal (its
+    /// upper part is not read).
+    pub fn from_factor(l: MatRef<'_, f64>) -> Llt {
+        let n = l.nrows();
+        Llt { l: Mat::from_fn(n, n, |i, j| if i >= j { l[(i, j)] } else { 0.0 }) }
+    }
+
+    /// `L`.
+    pub fn factor(&self) -> MatRef<'_, f64> {
+        self.l.as_ref()
     }
 
     /// `a^-1 rhs`.

@@ -10,8 +10,8 @@
 //! At commit 672e0f6 (Cholesky inverse of the formed `J^T J`) the factorisation failed in 59
 //! of 100 realisations (std infinite), and where it did not, the std was a fifth to a half of
 //! the spread (median reported / spread 0.48, 10 of 24 parameters within a factor 2). With the
-//! triangular factor of `J` (`evidence::qr_inverse`): median 1.28 (least squares) and 1.20
-//! (Huber), all within a factor 2.
+//! triangular factor of `J` (`evidence::qr_inverse`, now `jacobian_r::qr_inverse`): median 1.28
+//! (least squares) and 1.20 (Huber), all within a factor 2.
 
 mod common;
 

@@ -17,8 +17,9 @@
 //! The inverse is the Cholesky inverse of the formed, diagonally scaled Gram matrix `A` (unit
 //! diagonal) when `max_i (A^-1)_ii <= 1e11` ([`COND_LIMIT`]); above, forming `A` has squared a
 //! condition that rounding no longer survives, and the inverse is `R^-1 R^-T` from the
-//! triangular factor of the scaled Jacobian, `J_s = Q R` (blocked Householder QR, O(N d^2)),
-//! whose rounding error grows with `cond(J_s)` instead of `cond(J_s)^2` ([`qr_inverse`]).
+//! triangular factor of the scaled Jacobian, `J_s = Q R` (shifted CholeskyQR3 started from `A`,
+//! two passes over the rows, Householder QR where it fails; O(N d^2)), whose rounding error
+//! grows with `cond(J_s)` instead of `cond(J_s)^2` ([`super::jacobian_r`]).
 //!
 //! **Residual tests** (whiteness, independence from the input): [`super::residual_tests`].
 //!
@@ -28,9 +29,8 @@
 //! normal equations give it weight 0, the QR path a zero row); its prediction still depends on
 //! theta, but no residual is there to be explained.
 
-use faer::prelude::*;
-
 use super::huber::Loss;
+use super::jacobian_r::qr_inverse;
 use super::normal::NormalEquations;
 use super::problem::Problem;
 use super::residual_tests::{
@@ -68,8 +68,6 @@ pub struct Scratch {
     h: Vec<f64>,
     g: Vec<f64>,
     ne: NormalEquations,
-    /// The triangular factor of the scaled Jacobian ([`qr_inverse`]).
-    rq: Vec<f64>,
     /// The input `uc` and `ruu` were computed from.
     input_of: Vec<f64>,
     seams_of: Vec<usize>,
@@ -209,7 +207,7 @@ fn covariance_in(prob: &Problem, xu: &[f64], xy: &[f64], slope: f64, s: &mut Scr
     s.h.resize(d * d, 0.0);
     s.g.resize(d, 0.0);
     let w = observed_weights(prob, &mut s.w);
-    covariance_of(prob, xu, xy, &s.r, w, slope, &mut s.ne, &mut s.h, &mut s.g, &mut s.rq)
+    covariance_of(prob, xu, xy, &s.r, w, slope, &mut s.ne, &mut s.h, &mut s.g)
 }
 
 /// The normal equations' row weights of a record with missing outputs (0 at a missing one, 1
@@ -240,9 +238,9 @@ pub fn covariance(prob: &Problem, theta: &[f64], loss: Loss, yhat: &[f64]) -> Op
     let d = prob.dim();
     let (mut h, mut g) = (vec![0.0; d * d], vec![0.0; d]);
     let slope = slope(prob, loss, yhat);
-    let (mut rq, mut w) = (Vec::new(), Vec::new());
+    let mut w = Vec::new();
     let w = observed_weights(prob, &mut w);
-    covariance_of(prob, &xu, &xy, &r, w, slope, &mut NormalEquations::default(), &mut h, &mut g, &mut rq)
+    covariance_of(prob, &xu, &xy, &r, w, slope, &mut NormalEquations::default(), &mut h, &mut g)
 }
 
 /// `kappa / N h^-1` with `kappa = mean(r^2) / slope^2` and `h = (1/N) sum psi psi^T` from the
@@ -260,7 +258,6 @@ fn covariance_of(
     ne: &mut NormalEquations,
     h: &mut [f64],
     g: &mut [f64],
-    rq: &mut Vec<f64>,
 ) -> Option<Vec<f64>> {
     let d = prob.dim();
     let n = prob.n_obs();
@@ -287,7 +284,7 @@ fn covariance_of(
         // A unit-diagonal matrix has max_i inv_ii >= 1/(d lambda_min) and <= 1/lambda_min:
         // the diagonal of the inverse bounds the condition the Cholesky inverse had to face.
         Some(inv) if (0..d).all(|i| inv[(i, i)] <= COND_LIMIT) => (0..d * d).map(|ij| inv[(ij / d, ij % d)]).collect(),
-        _ => qr_inverse(prob, xu, xy, &scale, rq)?,
+        _ => qr_inverse(prob, xu, xy, &scale, a.as_ref())?,
     };
     Some((0..d * d).map(|ij| inv[ij] / (scale[ij / d] * scale[ij % d]) * kappa / n as f64).collect())
 }
@@ -300,96 +297,12 @@ fn covariance_of(
 /// itself (the lightly damped OE(12,12) of `tests/covariance_large.rs`, condition 6e15: the
 /// factorisation failed in 59 of 100 realisations and the std was otherwise a median 0.48 of
 /// the spread, METHOD.md 10). Below the limit the numbers are those of the formed matrix, as
-/// before; at 1e8 the QR path ran for most high orders of the paper grid and cost 28 % of its
-/// time (`jobs/paper-grid.json`, 7.4 s against 5.8 s), at 1e11 it costs 4 % (6.1 s) and
-/// `tests/same_table.rs` keeps its numbers bit for bit.
+/// before, and `tests/same_table.rs` keeps its numbers bit for bit. At 1e8 the QR path ran for
+/// most high orders of the paper grid (`jobs/paper-grid.json`) and cost 28 % of its time; at
+/// 1e11 it takes 1348 of the grid's 5164 evidence calls. Their cost, in interleaved runs of
+/// an instrumented build on a loaded machine (2 threads): blocked Householder QR (785b7cd) 3.5
+/// and 3.9 s, 2.6-2.9 ms a call; shifted CholeskyQR3 (2900eb1) 2.0 and 2.2 s, 1.5-1.6 ms.
 const COND_LIMIT: f64 = 1e11;
-
-/// Rows of the scaled Jacobian per QR block of [`qr_inverse`].
-const QR_ROWS: usize = 1024;
-
-/// `(J_s^T J_s / N)^-1` (d x d, row-major) of the Jacobian with columns scaled by `1/scale`,
-/// from its triangular factor: `J_s = Q R` by a QR of blocks of rows stacked under the R so far
-/// (no N x d matrix), and the inverse `R^-1 R^-T`. Rounding then perturbs the result by `eps cond(J)`
-/// rather than `eps cond(J)^2` (Golub and Van Loan, 5.3.7). None when R is singular.
-fn qr_inverse(prob: &Problem, xu: &[f64], xy: &[f64], scale: &[f64], rq: &mut Vec<f64>) -> Option<Vec<f64>> {
-    let d = prob.dim();
-    let n = prob.n();
-    let n_obs = prob.n_obs();
-    let lay = prob.layout();
-    let d0 = lay.dim();
-    rq.clear();
-    rq.resize(d * d, 0.0);
-    let root_n = (n_obs as f64).sqrt();
-    // Blocks of QR_ROWS rows stacked under the R so far, factored by faer's blocked
-    // Householder QR: the same O(N d^2) as rotations row by row at a fraction of the time.
-    let mut block = faer::Mat::<f64>::zeros(d + QR_ROWS, d);
-    let mut r_rows = 0;
-    for start in (0..n).step_by(QR_ROWS) {
-        let m = QR_ROWS.min(n - start);
-        for i in 0..r_rows {
-            for j in 0..d {
-                block[(i, j)] = if j >= i { rq[i * d + j] } else { 0.0 };
-            }
-        }
-        // Column by column: faer's matrices are column-major.
-        for (j, s) in scale.iter().enumerate() {
-            let mut col = block.col_mut(j);
-            let col = col.rb_mut().try_as_col_major_mut().expect("an owned column is contiguous").as_slice_mut();
-            let out = &mut col[r_rows..r_rows + m];
-            let factor = 1.0 / (s * root_n);
-            if j < d0 {
-                lay.column_into(xu, xy, j, start, factor, out);
-                // No lag reaches back across a seam: the experiment's first `lag` rows of the
-                // column are zero, as the record's first are.
-                let lag = lay.lag(j);
-                for &seam in prob.seams.iter().filter(|&&s| s + lag > start && s < start + m) {
-                    for t in seam.max(start)..(seam + lag).min(start + m) {
-                        out[t - start] = 0.0;
-                    }
-                }
-            } else {
-                out.fill(factor);
-            }
-            // A missing output's row is no equation: a zero row adds nothing to R^T R.
-            let here = &prob.missing[prob.missing.partition_point(|&t| t < start)..];
-            for &t in here.iter().take_while(|&&t| t < start + m) {
-                out[t - start] = 0.0;
-            }
-        }
-        let r = crate::dense::qr_r(block.as_ref().subrows(0, r_rows + m));
-        r_rows = r.nrows();
-        for i in 0..r_rows {
-            for j in i..d {
-                rq[i * d + j] = r[(i, j)];
-            }
-        }
-    }
-    if r_rows < d {
-        return None;
-    }
-    if (0..d).any(|i| !(rq[i * d + i].is_finite() && rq[i * d + i] != 0.0)) {
-        return None;
-    }
-    // R^-1 (upper), column by column by back substitution.
-    let mut rinv = vec![0.0; d * d];
-    for j in 0..d {
-        rinv[j * d + j] = 1.0 / rq[j * d + j];
-        for i in (0..j).rev() {
-            let s: f64 = (i + 1..=j).map(|k| rq[i * d + k] * rinv[k * d + j]).sum();
-            rinv[i * d + j] = -s / rq[i * d + i];
-        }
-    }
-    let mut inv = vec![0.0; d * d];
-    for i in 0..d {
-        for j in i..d {
-            let v: f64 = (j..d).map(|k| rinv[i * d + k] * rinv[j * d + k]).sum();
-            inv[i * d + j] = v;
-            inv[j * d + i] = v;
-        }
-    }
-    Some(inv)
-}
 
 /// `|G(e^{jw})|` of the model (b, f, delay) and its standard deviation from `cov` (of
 /// `[b, f]`, or `[b, f, c]`: the offset does not enter G), to first order through the gradient
@@ -428,50 +341,6 @@ pub fn gain_std(b: &[f64], f: &[f64], delay: usize, cov: &[f64], w: f64) -> (f64
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimate::fit::theta_of;
-    use crate::oe::Structure;
-
-    /// The QR path (taken when the formed Gram matrix is ill-conditioned) inverts the same
-    /// matrix as the Cholesky path, also on a record of several experiments with an offset:
-    /// its Jacobian rows have no lag across a seam, as the summed normal equations have not
-    /// (which `tests/experiments.rs` checks against an explicit Jacobian).
-    #[test]
-    fn the_qr_inverse_is_the_cholesky_inverse_across_seams() {
-        let n = 3000;
-        let mut s = 7u64;
-        let u: Vec<f64> = (0..n)
-            .map(|_| {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-            })
-            .collect();
-        let y = vec![0.0; n];
-        for seams in [vec![], vec![700, 2100]] {
-            let prob = Problem {
-                u: &u,
-                y: &y,
-                structure: Structure::siso(2, 2, 1),
-                offset: true,
-                seams: &seams,
-                missing: &[],
-            };
-            let (b, f) = ([1.0, 0.5], [-0.6, 0.2]);
-            let (mut xu, mut yh, mut xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-            prob.simulate_filtered(&theta_of(&b, &f, None), &mut xu, &mut yh, &mut xy);
-            let d = prob.dim();
-            let (mut h, mut g, r) = (vec![0.0; d * d], vec![0.0; d], vec![0.0; n]);
-            NormalEquations::default().build_all(&prob.layout(), true, &seams, &xu, &xy, None, &r, &mut h, &mut g);
-            let scale: Vec<f64> = (0..d).map(|i| h[i * d + i].sqrt()).collect();
-            let a = faer::Mat::<f64>::from_fn(d, d, |i, j| h[i * d + j] / (scale[i] * scale[j]));
-            let chol = crate::dense::Llt::new(a.as_ref()).expect("well conditioned").inverse();
-            let qr = qr_inverse(&prob, &xu, &xy, &scale, &mut Vec::new()).expect("full rank");
-            let big = (0..d * d).map(|ij| chol[(ij / d, ij % d)].abs()).fold(0.0, f64::max);
-            for ij in 0..d * d {
-                let (c, q) = (chol[(ij / d, ij % d)], qr[ij]);
-                assert!((c - q).abs() <= 1e-9 * big, "seams {seams:?}, entry {ij}: {c} vs {q}");
-            }
-        }
-    }
 
     /// The gradient of |G| in theta against central differences: with a covariance that has
     /// one parameter's variance only, the reported std is |d|G|/dtheta_i| times its std.

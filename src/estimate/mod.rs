@@ -24,7 +24,9 @@
 //! integrating    the record's integrating-plant test (IV pole)  problem, initial_guess, initial_state, least_squares
 //! separable      variable projection inner problem             problem, linalg, normal, huber
 //! residual_tests whiteness and independence of the residuals    kernels
-//! evidence       covariance, residual tests                    problem, normal, huber, cancellation, residual_tests
+//! jacobian_r     the scaled Jacobian's R: shifted CholeskyQR3  problem
+//! evidence       covariance, residual tests                    problem, normal, huber, cancellation, residual_tests,
+//!                                                              jacobian_r
 //! workspace      per-worker buffers                            problem, normal, separable, evidence
 //! solver         Levenberg-Marquardt                           all of the above
 //! fit            LsFit, HuberFit, assessment                   solver, evidence, initial_state
@@ -46,6 +48,7 @@ pub mod huber;
 pub mod initial_guess;
 pub mod initial_state;
 pub mod integrating;
+pub mod jacobian_r;
 pub mod layout;
 pub mod least_squares;
 pub mod linalg;
