@@ -34,8 +34,21 @@ pub fn k(k: f64) -> String {
     trimmed(k, 4)
 }
 
+/// A count with its noun, singular for one ("1 round", "3 rounds"); `noun` is the singular and
+/// takes an "s" in the plural.
+pub fn count(n: usize, noun: &str) -> String {
+    if n == 1 { format!("1 {noun}") } else { format!("{n} {noun}s") }
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_count_of_one_is_singular() {
+        assert_eq!(super::count(1, "round"), "1 round");
+        assert_eq!(super::count(0, "array"), "0 arrays");
+        assert_eq!(super::count(10, "round"), "10 rounds");
+    }
+
     #[test]
     fn k_reads_with_four_significant_digits() {
         assert_eq!(super::k(0.6034176336545164), "0.6034");

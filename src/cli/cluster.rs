@@ -146,7 +146,8 @@ pub(super) fn run_slurm(a: &SlurmArgs) -> Result<u8> {
     }
     outln!("merge job {} (starts when every shard succeeded)", s.merge_id);
     if let Some((_, max)) = s.search {
-        outln!("each merge job submits the next round until the search is finished (at most {max} rounds)");
+        let most = crate::text::count(max, "round");
+        outln!("each merge job submits the next round until the search is finished (at most {most})");
     }
     outln!("results in {}, Slurm logs in {}", s.out.display(), s.logs.display());
     Ok(0)

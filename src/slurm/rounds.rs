@@ -150,9 +150,9 @@ impl Loop {
         }
         if self.arrays.len() >= self.max_rounds {
             return Decision::Stop(format!(
-                "the coordinate search stops: round {round} waits after {} arrays, the most --max-rounds allows; \
+                "the coordinate search stops: round {round} waits after {}, the most --max-rounds allows; \
                  to go on, submit again with {}",
-                self.arrays.len(),
+                crate::text::count(self.arrays.len(), "array"),
                 self.again(2 * self.max_rounds)
             ));
         }
