@@ -280,10 +280,10 @@ fn slurm_submits_the_search_round_by_round_until_a_merge_finds_it_finished() {
     // The bound: one array, then the next round is not submitted.
     let bounded = job_with_output(dir.path(), "coordinate", "bounded");
     let (code, text) = slurm(&[&s(&bounded), "--shards=2", "--max-rounds=1"]);
-    assert!(code == Some(0) && text.contains("at most 1 rounds"), "{text}");
+    assert!(code == Some(0) && text.contains("at most 1 round)"), "{text}");
     shards(&bounded);
     let (code, text) = slurm(&["--next-round", &s(&dir.path().join("bounded"))]);
-    assert!(code == Some(1) && text.contains("round 2 waits after 1 arrays, the most --max-rounds allows"), "{text}");
+    assert!(code == Some(1) && text.contains("round 2 waits after 1 array, the most --max-rounds allows"), "{text}");
 
     let path = job(dir.path(), "coordinate");
     let out = dir.path().join("out");
