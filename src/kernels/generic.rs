@@ -70,7 +70,7 @@ pub(super) fn dot2_impl<const FMA: bool>(a: &[f64], b: &[f64], c: &[f64]) -> (f6
 }
 
 /// Samples per block of [`lagged_dots_impl`]: two blocks (plus the lags) stay in L1.
-const LAG_BLOCK: usize = 1024;
+pub(super) const LAG_BLOCK: usize = 1024;
 
 /// Visit the terms of lagged sums `sum_{s + l < n} ...` block by block: for each block of
 /// [`LAG_BLOCK`] samples and each lag `l < lags`, `f(l, s0, end)` with the block's terms
