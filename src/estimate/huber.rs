@@ -43,29 +43,16 @@ impl Loss {
     /// Summed loss over residuals `y - yhat` (a record with missing outputs sums its observed
     /// runs: [`super::Problem::criterion`]).
     pub fn total(self, y: &[f64], yhat: &[f64]) -> f64 {
-        match self {
-            Loss::LeastSquares => sum_over(y, yhat, |e| e * e) * 0.5,
-            Loss::Huber { gamma } => sum_over(y, yhat, |e| rho(gamma, e)),
-        }
+        crate::kernels::loss_total(y, yhat, self.gamma())
     }
-}
 
-/// `sum_t f(y_t - yhat_t)` in eight interleaved partial sums: one running sum is a chain of
-/// dependent adds (latency-bound), eight overlap and vectorise.
-#[inline(always)]
-fn sum_over(y: &[f64], yhat: &[f64], f: impl Fn(f64) -> f64) -> f64 {
-    const L: usize = 8;
-    let n = y.len().min(yhat.len());
-    let mut acc = [0.0; L];
-    let (cy, cyh) = (y[..n].chunks_exact(L), yhat[..n].chunks_exact(L));
-    let (ry, ryh) = (cy.remainder(), cyh.remainder());
-    for (a, b) in cy.zip(cyh) {
-        for k in 0..L {
-            acc[k] += f(a[k] - b[k]);
+    /// Huber's gamma; None for least squares.
+    pub fn gamma(self) -> Option<f64> {
+        match self {
+            Loss::LeastSquares => None,
+            Loss::Huber { gamma } => Some(gamma),
         }
     }
-    let tail: f64 = ry.iter().zip(ryh).map(|(a, b)| f(a - b)).sum();
-    ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7])) + tail
 }
 
 /// `rho_g(x)`, branch-free: with `m = min(|x|, g)`, `m (|x| - m/2)` is `x^2/2` on the L2 set

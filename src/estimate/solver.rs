@@ -128,34 +128,8 @@ fn minimise_unprofiled(
             return finish(ws, crit, it, Termination::ExactFit, reflections, lambda);
         }
         // Residual influence and row weights at the current point.
-        match loss {
-            Loss::LeastSquares => {
-                for ((r, &y), &yh) in ws.r.iter_mut().zip(prob.y).zip(&ws.yhat) {
-                    *r = y - yh;
-                }
-            }
-            Loss::Huber { gamma } => {
-                // Branch-free and over zipped slices, so it vectorises (the L1/L2 split of
-                // consecutive residuals is unpredictable).
-                let rows = ws.r.iter_mut().zip(ws.w.iter_mut()).zip(prob.y.iter().zip(&ws.yhat));
-                match opts.huber_hessian {
-                    HuberHessian::GaussNewton => {
-                        for ((r, w), (&y, &yh)) in rows {
-                            let e = y - yh;
-                            *r = e.clamp(-gamma, gamma);
-                            *w = if e.abs() <= gamma { 1.0 } else { 0.0 };
-                        }
-                    }
-                    HuberHessian::Irls => {
-                        for ((r, w), (&y, &yh)) in rows {
-                            let e = y - yh;
-                            *r = e.clamp(-gamma, gamma);
-                            *w = if e.abs() <= gamma { 1.0 } else { gamma / e.abs() };
-                        }
-                    }
-                }
-            }
-        }
+        let irls = opts.huber_hessian == HuberHessian::Irls;
+        crate::kernels::influence(prob.y, &ws.yhat, loss.gamma(), irls, &mut ws.r, &mut ws.w);
         if !prob.missing.is_empty() {
             if loss == Loss::LeastSquares {
                 ws.w[..n].fill(1.0);

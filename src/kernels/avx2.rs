@@ -14,6 +14,22 @@
 pub unsafe fn dot(a: &[f64], b: &[f64]) -> f64 {
     super::generic::dot_impl::<true>(a, b)
 }
+/// [`super::loss_total`].
+///
+/// # Safety
+/// The CPU supports AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+pub unsafe fn loss_total(y: &[f64], yhat: &[f64], gamma: Option<f64>) -> f64 {
+    super::generic::loss_total_impl(y, yhat, gamma)
+}
+/// [`super::influence`].
+///
+/// # Safety
+/// The CPU supports AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+pub unsafe fn influence(y: &[f64], yhat: &[f64], gamma: Option<f64>, irls: bool, r: &mut [f64], w: &mut [f64]) {
+    super::generic::influence_impl(y, yhat, gamma, irls, r, w)
+}
 /// [`super::lagged_dots`].
 ///
 /// # Safety

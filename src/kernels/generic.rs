@@ -322,6 +322,61 @@ pub(super) fn inv_f_generic(f: &[f64], x: &mut [f64]) {
     }
 }
 
+/// `sum_t f(y_t - yhat_t)` in eight interleaved partial sums: one running sum is a chain of
+/// dependent adds (latency-bound), eight overlap and vectorise.
+#[inline(always)]
+fn sum_over(y: &[f64], yhat: &[f64], f: impl Fn(f64) -> f64) -> f64 {
+    const L: usize = 8;
+    let n = y.len().min(yhat.len());
+    let mut acc = [0.0; L];
+    let (cy, cyh) = (y[..n].chunks_exact(L), yhat[..n].chunks_exact(L));
+    let (ry, ryh) = (cy.remainder(), cyh.remainder());
+    for (a, b) in cy.zip(cyh) {
+        for k in 0..L {
+            acc[k] += f(a[k] - b[k]);
+        }
+    }
+    let tail: f64 = ry.iter().zip(ryh).map(|(a, b)| f(a - b)).sum();
+    ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7])) + tail
+}
+
+#[inline(always)]
+pub(super) fn loss_total_impl(y: &[f64], yhat: &[f64], gamma: Option<f64>) -> f64 {
+    match gamma {
+        None => sum_over(y, yhat, |e| e * e) * 0.5,
+        Some(g) => sum_over(y, yhat, |e| crate::estimate::huber::rho(g, e)),
+    }
+}
+
+/// Branch-free and over zipped slices, so it vectorises (the L1/L2 split of consecutive
+/// residuals is unpredictable).
+#[inline(always)]
+pub(super) fn influence_impl(y: &[f64], yhat: &[f64], gamma: Option<f64>, irls: bool, r: &mut [f64], w: &mut [f64]) {
+    match gamma {
+        None => {
+            for ((r, &y), &yh) in r.iter_mut().zip(y).zip(yhat) {
+                *r = y - yh;
+            }
+        }
+        Some(gamma) => {
+            let rows = r.iter_mut().zip(w.iter_mut()).zip(y.iter().zip(yhat));
+            if irls {
+                for ((r, w), (&y, &yh)) in rows {
+                    let e = y - yh;
+                    *r = e.clamp(-gamma, gamma);
+                    *w = if e.abs() <= gamma { 1.0 } else { gamma / e.abs() };
+                }
+            } else {
+                for ((r, w), (&y, &yh)) in rows {
+                    let e = y - yh;
+                    *r = e.clamp(-gamma, gamma);
+                    *w = if e.abs() <= gamma { 1.0 } else { 0.0 };
+                }
+            }
+        }
+    }
+}
+
 // The baseline build.
 
 pub fn compact(w: &[f64], skip: f64, rows: &mut [u32], alpha: Option<&mut [f64]>) -> usize {
@@ -350,4 +405,10 @@ pub fn inv_f(f: &[f64], x: &mut [f64]) {
 }
 pub fn fir(b: &[f64], delay: usize, u: &[f64], out: &mut [f64]) {
     fir_impl::<false>(b, delay, u, out)
+}
+pub fn loss_total(y: &[f64], yhat: &[f64], gamma: Option<f64>) -> f64 {
+    loss_total_impl(y, yhat, gamma)
+}
+pub fn influence(y: &[f64], yhat: &[f64], gamma: Option<f64>, irls: bool, r: &mut [f64], w: &mut [f64]) {
+    influence_impl(y, yhat, gamma, irls, r, w)
 }

@@ -143,6 +143,17 @@ dispatch! {
     fn fir(b: &[f64], delay: usize, u: &[f64], out: &mut [f64]) {
         assert_eq!(u.len(), out.len());
     }
+
+    /// `sum_t rho(y_t - yhat_t)` over the common length: `e^2/2` without `gamma`, Huber's
+    /// `rho_gamma` with it ([`crate::estimate::huber::rho`]). The same sums in the same order
+    /// in both builds (no multiply-add to fuse), so the same bits: AVX2 only widens them.
+    fn loss_total(y: &[f64], yhat: &[f64], gamma: Option<f64>) -> f64 {}
+
+    /// The solver's residual pass over the common length of `y`, `yhat`, `r` (and `w`):
+    /// without `gamma`, `r = y - yhat` (`w` untouched); with it, `r = psi_gamma(y - yhat)` and
+    /// `w` the Gauss-Newton weights (1 on the L2 set, 0 beyond) or, `irls`, `min(1, gamma/|e|)`.
+    /// Same bits in both builds.
+    fn influence(y: &[f64], yhat: &[f64], gamma: Option<f64>, irls: bool, r: &mut [f64], w: &mut [f64]) {}
 }
 
 /// The simulation and both Jacobian signals of an OE model in one pass (METHOD.md 2):
@@ -247,6 +258,53 @@ mod tests {
                     let want: f64 =
                         if l < len { a[..len - l].iter().zip(&b[l..]).map(|(x, y)| x * y).sum() } else { 0.0 };
                     assert!((out[l] - want).abs() < 1e-10 && (out2[l] - want).abs() < 1e-10, "len {len} lag {l}");
+                }
+            }
+        }
+    }
+
+    /// The criterion's sums and the residual pass: both builds give the same bits, and the
+    /// sums are the definition's (up to the order of the additions).
+    #[test]
+    fn loss_and_influence_are_the_same_bits_in_both_builds() {
+        for len in [0, 1, 7, 8, 9, 100, 1001] {
+            let y: Vec<f64> = (0..len).map(|i| (i as f64 * 0.37).sin() * 3.0).collect();
+            let yhat: Vec<f64> = (0..len).map(|i| (i as f64 * 0.11).cos()).collect();
+            for gamma in [None, Some(0.5), Some(1e-300), Some(f64::INFINITY)] {
+                let (a, b) = (loss_total(&y, &yhat, gamma), generic::loss_total(&y, &yhat, gamma));
+                assert_eq!(a.to_bits(), b.to_bits(), "len {len} gamma {gamma:?}");
+                let want: f64 = y
+                    .iter()
+                    .zip(&yhat)
+                    .map(|(y, yh)| {
+                        let e: f64 = y - yh;
+                        match gamma {
+                            None => 0.5 * e * e,
+                            Some(g) if e.abs() <= g => 0.5 * e * e,
+                            Some(g) => g * e.abs() - 0.5 * g * g,
+                        }
+                    })
+                    .sum();
+                assert!((a - want).abs() <= 1e-12 * (1.0 + want.abs()), "len {len} gamma {gamma:?}: {a} vs {want}");
+                for irls in [false, true] {
+                    let (mut r1, mut w1) = (vec![f64::NAN; len], vec![7.0; len]);
+                    let (mut r2, mut w2) = (vec![f64::NAN; len], vec![7.0; len]);
+                    influence(&y, &yhat, gamma, irls, &mut r1, &mut w1);
+                    generic::influence(&y, &yhat, gamma, irls, &mut r2, &mut w2);
+                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!((bits(&r1), bits(&w1)), (bits(&r2), bits(&w2)), "len {len} gamma {gamma:?}");
+                    for t in 0..len {
+                        let e = y[t] - yhat[t];
+                        let g = gamma.unwrap_or(f64::INFINITY);
+                        assert_eq!(r1[t], e.clamp(-g, g));
+                        let w = match gamma {
+                            None => 7.0,
+                            Some(_) if e.abs() <= g => 1.0,
+                            Some(_) if irls => g / e.abs(),
+                            Some(_) => 0.0,
+                        };
+                        assert_eq!(w1[t], w, "len {len} t {t}");
+                    }
                 }
             }
         }
