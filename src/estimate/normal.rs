@@ -344,21 +344,13 @@ impl NormalEquations {
         }
         for (rows, alpha) in rows.chunks(PACK_BLOCK).zip(alpha.chunks(PACK_BLOCK)) {
             let mb = rows.len();
-            for (row, &t) in self.packed.chunks_exact_mut(dp).zip(rows) {
-                let t = t as usize;
-                if t >= first_full {
-                    let (ru, ry) = row[..d].split_at_mut(nb);
-                    for (r, &v) in ru.iter_mut().zip(xu[t + 1 - dl - nb..=t - dl].iter().rev()) {
-                        *r = v;
-                    }
-                    for (r, &v) in ry.iter_mut().zip(xy[t - lay.nf..t].iter().rev()) {
-                        *r = -v;
-                    }
-                } else {
-                    lay.row(xu, xy, t, &mut row[..d]);
-                }
+            // The rows come in time order: those whose lags reach before the record first.
+            let k0 = rows.partition_point(|&t| (t as usize) < first_full);
+            for (row, &t) in self.packed.chunks_exact_mut(dp).zip(&rows[..k0]) {
+                lay.row(xu, xy, t as usize, &mut row[..d]);
                 row[d..].fill(0.0);
             }
+            crate::kernels::pack_rows(xu, xy, &rows[k0..], nb, lay.nf, dl, dp, &mut self.packed[k0 * dp..mb * dp]);
             if !uniform {
                 for ((dst, src), &a) in self.scaled.chunks_exact_mut(dp).zip(self.packed.chunks_exact(dp)).zip(alpha) {
                     for (q, &p) in dst.iter_mut().zip(src) {

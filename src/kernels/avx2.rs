@@ -30,6 +30,24 @@ pub unsafe fn loss_total(y: &[f64], yhat: &[f64], gamma: Option<f64>) -> f64 {
 pub unsafe fn influence(y: &[f64], yhat: &[f64], gamma: Option<f64>, irls: bool, r: &mut [f64], w: &mut [f64]) {
     super::generic::influence_impl(y, yhat, gamma, irls, r, w)
 }
+/// [`super::pack_rows`].
+///
+/// # Safety
+/// The CPU supports AVX2 and FMA.
+#[allow(clippy::too_many_arguments)]
+#[target_feature(enable = "avx2,fma")]
+pub unsafe fn pack_rows(
+    xu: &[f64],
+    xy: &[f64],
+    rows: &[u32],
+    nb: usize,
+    nf: usize,
+    delay: usize,
+    dp: usize,
+    packed: &mut [f64],
+) {
+    super::generic::pack_rows_impl(xu, xy, rows, nb, nf, delay, dp, packed)
+}
 /// [`super::lagged_dots`].
 ///
 /// # Safety

@@ -377,6 +377,34 @@ pub(super) fn influence_impl(y: &[f64], yhat: &[f64], gamma: Option<f64>, irls: 
     }
 }
 
+/// Rows of the Jacobian packed for [`super::syrk_upper`], see [`super::pack_rows`].
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(super) fn pack_rows_impl(
+    xu: &[f64],
+    xy: &[f64],
+    rows: &[u32],
+    nb: usize,
+    nf: usize,
+    delay: usize,
+    dp: usize,
+    packed: &mut [f64],
+) {
+    let d = nb + nf;
+    for (row, &t) in packed.chunks_exact_mut(dp).zip(rows) {
+        let t = t as usize;
+        let (ru, rest) = row.split_at_mut(nb);
+        let (ry, pad) = rest.split_at_mut(d - nb);
+        for (r, &v) in ru.iter_mut().zip(xu[t + 1 - delay - nb..=t - delay].iter().rev()) {
+            *r = v;
+        }
+        for (r, &v) in ry.iter_mut().zip(xy[t - nf..t].iter().rev()) {
+            *r = -v;
+        }
+        pad.fill(0.0);
+    }
+}
+
 // The baseline build.
 
 pub fn compact(w: &[f64], skip: f64, rows: &mut [u32], alpha: Option<&mut [f64]>) -> usize {
@@ -405,6 +433,19 @@ pub fn inv_f(f: &[f64], x: &mut [f64]) {
 }
 pub fn fir(b: &[f64], delay: usize, u: &[f64], out: &mut [f64]) {
     fir_impl::<false>(b, delay, u, out)
+}
+#[allow(clippy::too_many_arguments)]
+pub fn pack_rows(
+    xu: &[f64],
+    xy: &[f64],
+    rows: &[u32],
+    nb: usize,
+    nf: usize,
+    delay: usize,
+    dp: usize,
+    packed: &mut [f64],
+) {
+    pack_rows_impl(xu, xy, rows, nb, nf, delay, dp, packed)
 }
 pub fn loss_total(y: &[f64], yhat: &[f64], gamma: Option<f64>) -> f64 {
     loss_total_impl(y, yhat, gamma)

@@ -144,6 +144,21 @@ dispatch! {
         assert_eq!(u.len(), out.len());
     }
 
+    /// Row `k` of `packed` (stride `dp >= nb + nf`) <- the Jacobian row `psi_t` of one input's
+    /// OE(nb, nf) with `delay` at `t = rows[k]` ([`crate::estimate::normal::Layout::row`]):
+    /// `xu[t - delay - i]` for `i < nb`, then `-xy[t - 1 - j]` for `j < nf`, then zeros. Every
+    /// row's lags must stay inside the record: `t >= max(delay + nb - 1, nf, delay)` (checked).
+    fn pack_rows(xu: &[f64], xy: &[f64], rows: &[u32], nb: usize, nf: usize, delay: usize, dp: usize, packed: &mut [f64]) {
+        assert!(dp >= nb + nf && packed.len() >= rows.len() * dp, "rows of stride dp >= nb + nf");
+        assert!(
+            rows.iter().all(|&t| {
+                let t = t as usize;
+                t + 1 >= delay + nb && t >= nf && t >= delay && t < xu.len().min(xy.len())
+            }),
+            "rows whose lags stay inside the record"
+        );
+    }
+
     /// `sum_t rho(y_t - yhat_t)` over the common length: `e^2/2` without `gamma`, Huber's
     /// `rho_gamma` with it ([`crate::estimate::huber::rho`]). The same sums in the same order
     /// in both builds (no multiply-add to fuse), so the same bits: AVX2 only widens them.
