@@ -148,6 +148,7 @@ dispatch! {
     /// OE(nb, nf) with `delay` at `t = rows[k]` ([`crate::estimate::normal::Layout::row`]):
     /// `xu[t - delay - i]` for `i < nb`, then `-xy[t - 1 - j]` for `j < nf`, then zeros. Every
     /// row's lags must stay inside the record: `t >= max(delay + nb - 1, nf, delay)` (checked).
+    #[allow(clippy::too_many_arguments)]
     fn pack_rows(xu: &[f64], xy: &[f64], rows: &[u32], nb: usize, nf: usize, delay: usize, dp: usize, packed: &mut [f64]) {
         assert!(dp >= nb + nf && packed.len() >= rows.len() * dp, "rows of stride dp >= nb + nf");
         assert!(
