@@ -302,6 +302,14 @@ mod tests {
                     })
                     .sum();
                 assert!((a - want).abs() <= 1e-12 * (1.0 + want.abs()), "len {len} gamma {gamma:?}: {a} vs {want}");
+                if len > 0 {
+                    let mut with_nan = y.clone();
+                    with_nan[len / 2] = f64::NAN;
+                    assert!(
+                        loss_total(&with_nan, &yhat, gamma).is_nan()
+                            && generic::loss_total(&with_nan, &yhat, gamma).is_nan()
+                    );
+                }
                 for irls in [false, true] {
                     let (mut r1, mut w1) = (vec![f64::NAN; len], vec![7.0; len]);
                     let (mut r2, mut w2) = (vec![f64::NAN; len], vec![7.0; len]);
