@@ -176,12 +176,12 @@ fn minimise_unprofiled(
             cholesky_solve(&ws.a, d, &mut ws.delta);
             // Predicted decrease of the quadratic model: g.delta - delta^T H delta / 2.
             let mut quad = 0.0;
-            for i in 0..d {
+            for (row, &di) in ws.h[..d * d].chunks_exact(d).zip(&ws.delta[..d]) {
                 let mut hi = 0.0;
-                for j in 0..d {
-                    hi += ws.h[i * d + j] * ws.delta[j];
+                for (&hij, &dj) in row.iter().zip(&ws.delta[..d]) {
+                    hi += hij * dj;
                 }
-                quad += ws.delta[i] * hi;
+                quad += di * hi;
             }
             let pred = ws.g.iter().zip(&ws.delta).map(|(a, b)| a * b).sum::<f64>() - 0.5 * quad;
             for i in 0..d {
