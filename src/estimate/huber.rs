@@ -55,15 +55,8 @@ impl Loss {
     }
 }
 
-/// `rho_g(x)`, branch-free: with `m = min(|x|, g)`, `m (|x| - m/2)` is `x^2/2` on the L2 set
-/// and `g|x| - g^2/2` on the L1 set. (A branch mispredicts on every other residual when the
-/// two sets are of similar size.)
-#[inline(always)]
-pub fn rho(g: f64, x: f64) -> f64 {
-    let a = x.abs();
-    let m = a.min(g);
-    m * (a - 0.5 * m)
-}
+/// `rho_g(x)`: defined beside the kernels that sum it ([`crate::kernels::huber_rho`]).
+pub use crate::kernels::huber_rho as rho;
 
 /// L1-contribution: the share of residuals beyond gamma, over the observed outputs (a missing
 /// output's NaN residual is never beyond gamma; `observed` is their count).

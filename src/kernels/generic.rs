@@ -344,7 +344,7 @@ fn sum_over(y: &[f64], yhat: &[f64], f: impl Fn(f64) -> f64) -> f64 {
 pub(super) fn loss_total_impl(y: &[f64], yhat: &[f64], gamma: Option<f64>) -> f64 {
     match gamma {
         None => sum_over(y, yhat, |e| e * e) * 0.5,
-        Some(g) => sum_over(y, yhat, |e| crate::estimate::huber::rho(g, e)),
+        Some(g) => sum_over(y, yhat, |e| super::huber_rho(g, e)),
     }
 }
 

@@ -26,6 +26,8 @@ macro_rules! inv_f_dispatch {
 #[cfg(target_arch = "x86_64")]
 mod avx2;
 #[cfg(target_arch = "x86_64")]
+mod avx2_correlations;
+#[cfg(target_arch = "x86_64")]
 mod avx2_lanes;
 mod generic;
 mod lanes;
@@ -77,6 +79,18 @@ fn has_fma() -> bool {
             false
         }
     })
+}
+
+/// Huber's `rho_g(x)` (METHOD.md 3; `estimate::huber::rho`), branch-free: with
+/// `m = min(|x|, g)`, `m (|x| - m/2)` is `x^2/2` on the L2 set and `g|x| - g^2/2` on the L1
+/// set. (A branch mispredicts on every other residual when the two sets are of similar size.)
+/// Here, not in `estimate::huber`, because [`loss_total`] sums it: the kernels import nothing
+/// from the estimators.
+#[inline(always)]
+pub fn huber_rho(g: f64, x: f64) -> f64 {
+    let a = x.abs();
+    let m = a.min(g);
+    m * (a - 0.5 * m)
 }
 
 /// One public wrapper per kernel: after the kernel's own checks (`check`), the AVX2+FMA build
