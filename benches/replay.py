@@ -3,7 +3,8 @@
 
 The profile lists the tasks the worker pool ran (kind, pair, the tasks each one waited for, its
 priority, its worker seconds; a whole run's nested checks, METHOD.md 5.6, are tasks of kind
-`nested`, one per cell) and the run's serial parts (reading, spectrum, setup, the sweep's own
+`nested`, one per cell; since issue 48 the spectral estimate is a task, kind `spectrum`) and
+the run's serial parts (reading, spectrum in profiles before issue 48, setup, the sweep's own
 serial work, reducing and writing; wall seconds; `nested` for a profile whose nested pass ran
 in waves after the sweep, before the checks were tasks). A replay lays the tasks on T workers by
 list scheduling: whenever a worker is free it starts the ready task that comes first, a task
@@ -128,6 +129,10 @@ def waves(tasks):
     for t in rest:
         # A nested check also waits for its cell's Huber task and its sub-models' checks.
         own = list(t["after"]) if t["kind"] == "nested" else []
+        if t["kind"] == "spectrum":
+            # The spectral estimate (a task since issue 48): beside the first wave.
+            after[t["id"]] = []
+            continue
         after[t["id"]] = own + ([barrier] if barrier is not None else [])
     n = len(tasks)
 

@@ -66,7 +66,8 @@ impl Role {
 pub enum Phase {
     /// Reading and checking the job and its records (wall).
     Read,
-    /// The robust spectral estimate of the estimation record (wall, inside `Read`).
+    /// The spectral estimate of the estimation record (workers: a task of the sweep,
+    /// [`crate::spectral::Deferred`]).
     Spectrum,
     /// The least-squares phase of every pair: initial guesses, solver, assessment (workers).
     LeastSquares,
@@ -247,7 +248,8 @@ pub struct TaskTime {
     /// least-squares phase finished), `chains` (a pair's Huber cells under the `chains`
     /// strategy: the walk, the backward pass, the whole-record refits, the evidence),
     /// `neighbour` (a pair's Huber cells under `neighbour`/`best`), `cell` (one Huber cell under
-    /// `ls`) or `nested` (one Huber cell's nested check, METHOD.md 5.6).
+    /// `ls`), `nested` (one Huber cell's nested check, METHOD.md 5.6) or `spectrum` (the
+    /// spectral estimate of the band fits, before every `least_squares`; its pair's orders 0).
     pub kind: &'static str,
     pub nb: usize,
     pub nf: usize,
@@ -292,8 +294,8 @@ pub struct PartTime {
 pub struct Schedule {
     pub workers: Option<Workers>,
     pub tasks: Vec<TaskTime>,
-    /// In run order: `read` (reading and checking the job and records, the spectrum left out),
-    /// `spectrum`, `setup` (checkpoint, plan, pool), `sweep_serial` (the sweep's wall outside
+    /// In run order: `read` (reading and checking the job and records; the spectral estimate
+    /// is a task, kind `spectrum`), `setup` (checkpoint, plan, pool), `sweep_serial` (the sweep's wall outside
     /// its tasks: collecting and sorting the rows), `nested` (the waves of `sweep::nested_pass`,
     /// their wall time, when a profiled run runs them: a whole run checks its cells as tasks)
     /// and `write` (reducing and writing).

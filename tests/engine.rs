@@ -205,5 +205,58 @@ fn a_profiled_run_counts_every_fit_by_role() {
     let (w1, w2) = (s1.workers.unwrap(), s2.workers.unwrap());
     assert_eq!((w1.threads, w1.live, w2.threads, w2.live), (1, 1, 2, 2));
     let parts: Vec<&str> = s2.serial.iter().map(|p| p.part).collect();
-    assert_eq!(parts, ["read", "spectrum", "setup", "sweep_serial", "write"]);
+    assert_eq!(parts, ["read", "setup", "sweep_serial", "write"]);
+}
+
+/// With `band_hz` the spectral estimate is a task of the sweep, not a serial part: one task of
+/// kind `spectrum` that every least-squares finish (the first fits judged) comes after and
+/// nothing else waits for; and the band fits it gave are those of the robust estimate of the
+/// record made before the run, whatever the thread count.
+#[test]
+fn the_spectral_estimate_is_a_task_of_the_sweep() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = job(dir.path(), "band");
+    let mut doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    doc["band_hz"] = serde_json::json!([0, 1500]);
+    std::fs::write(&path, doc.to_string()).unwrap();
+    let run = |threads| {
+        let opts = RunOptions { threads, force: true, profile: true, ..Default::default() };
+        let p = engine::run(&path, &opts, &|_| {}).unwrap().profile.expect("asked for");
+        (p, table(&dir.path().join("band")))
+    };
+    let ((one, rows1), (two, rows2)) = (run(1), run(2));
+    assert!(rows1 == rows2, "the table depends on the thread count");
+    for p in [&one, &two] {
+        let s = &p.schedule;
+        let spectrum: Vec<_> = s.tasks.iter().filter(|t| t.kind == "spectrum").collect();
+        assert_eq!(spectrum.len(), 1);
+        let id = spectrum[0].id;
+        assert!(spectrum[0].after.is_empty());
+        for t in &s.tasks {
+            assert_eq!(t.after.contains(&id), t.kind == "least_squares", "{t:?}");
+        }
+        assert!(!s.serial.iter().any(|p| p.part == "spectrum"), "{:?}", s.serial);
+    }
+    // The robust estimate of the record, made here up front, gives every row's band fit.
+    let prepared = engine::prepare(&path).unwrap();
+    let est = &prepared.inputs.est;
+    let ests = oesweep::spectral::estimate_inputs(
+        &est.u,
+        1,
+        &est.y,
+        &est.seams,
+        &est.missing,
+        1e-4,
+        oesweep::spectral::SpectrumMethod::Robust,
+    )
+    .unwrap();
+    let bins = ests[0].band(0.0, 1500.0);
+    assert_eq!(bins, prepared.spectral.as_ref().unwrap().bins);
+    assert!(ests[0].replaced > 0, "the record's spikes are cleaned");
+    for r in &rows2 {
+        let delay = r.key.structure().inputs()[0].delay;
+        let expected =
+            oesweep::spectral::band_fit(&ests[0], &bins, &r.fit.b, &r.fit.f, delay).filter(|v| v.is_finite());
+        assert_eq!(r.fit.fit_band.map(f64::to_bits), expected.map(f64::to_bits), "{:?}", r.key);
+    }
 }

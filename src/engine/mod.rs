@@ -28,7 +28,7 @@ use crate::shard::{self, Shard};
 pub use write::lead_structure;
 use write::write_results;
 
-use crate::spectral::{self, SpectralEstimate};
+use crate::spectral;
 use crate::sweep::{self, Context};
 use crate::table::CellRow;
 use std::path::{Path, PathBuf};
@@ -55,10 +55,9 @@ pub use spectrum::{SpectrumReport, SpectrumRequest, spectrum, spectrum_arrays};
 pub struct Prepared {
     pub job: ValidJob,
     pub inputs: Inputs,
-    /// The spectral estimate of the estimation record (one per input) and the bins of `band_hz`.
-    pub spectral: Option<(Vec<SpectralEstimate>, Vec<usize>)>,
-    /// Seconds the spectral estimate took (0 without `band_hz`).
-    pub spectrum_seconds: f64,
+    /// The spectral estimate of the estimation record (one per input) and the bins of
+    /// `band_hz`, the estimate computed on first use (a task of the sweep).
+    pub spectral: Option<spectral::Deferred>,
     pub plan: Plan,
     /// The product of `plan`, or the coordinate search in it ([`crate::search`]).
     pub search: Search,
@@ -72,7 +71,7 @@ impl Prepared {
         Context {
             est: &self.inputs.est,
             val: self.inputs.val.as_ref(),
-            band: self.spectral.as_ref().map(|(s, b)| (&s[..], &b[..])),
+            band: self.spectral.as_ref(),
             solver: self.job.job.solver.clone(),
             levels: self.inputs.levels.clone(),
             initial_state: self.job.job.initial_state,
@@ -95,29 +94,24 @@ pub fn prepare(path: &Path) -> Result<Prepared> {
 fn prepare_job(job: job::ValidJob) -> Result<Prepared> {
     let path = &job.file;
     let (inputs, gaps) = job::load_inputs_gaps(&job)?;
-    let since = std::time::Instant::now();
+    // The bins are checked here, the estimate is made during the run (spectral::Deferred).
     let spectral = match job.job.band_hz {
         Some([lo, hi]) => {
-            let est = &inputs.est;
-            let s =
-                spectral::estimate_inputs(&est.u, job.m, &est.y, &est.seams, &est.missing, job.ts(), job.job.spectrum)
-                    .map_err(|e| Error::data(&job.job.data.first().path, e.to_string()))?;
-            // Every input's estimate has the same usable bins.
-            let bins = s[0].band(lo, hi);
-            if bins.is_empty() {
+            let d = spectral::Deferred::new(&inputs.est, job.ts(), job.job.spectrum, lo, hi)
+                .map_err(|e| Error::data(&job.job.data.first().path, e.to_string()))?;
+            let Some(d) = d else {
                 return Err(Error::input(
                     path,
                     format!("field 'band_hz': [{lo}, {hi}] Hz holds no frequency bin of the spectral estimate"),
                 ));
-            }
-            Some((s, bins))
+            };
+            Some(d)
         }
         None => None,
     };
-    let spectrum_seconds = if spectral.is_some() { since.elapsed().as_secs_f64() } else { 0.0 };
     let plan = Plan::from_job(&job);
     let search = Search::of_job(&job, &plan);
-    Ok(Prepared { job, inputs, spectral, spectrum_seconds, plan, search, gaps })
+    Ok(Prepared { job, inputs, spectral, plan, search, gaps })
 }
 
 /// How to run a job.
@@ -302,10 +296,7 @@ fn run_loaded(
     drop(reading);
     let setup = Instant::now();
     if let Some(prof) = &profile {
-        prof.add_seconds(Phase::Spectrum, p.spectrum_seconds);
-        let read = prof.report().seconds(Phase::Read);
-        prof.serial("read", (read - p.spectrum_seconds).max(0.0));
-        prof.serial("spectrum", p.spectrum_seconds);
+        prof.serial("read", prof.report().seconds(Phase::Read));
     }
     let out = p.job.output().to_path_buf();
     let (plan, label) = match opts.shard {

@@ -40,12 +40,14 @@
 //! better than `G_model = 0`, and it is negative for worse models (like the time-domain `fit`).
 
 pub mod clean;
+mod deferred;
 mod fft;
 mod gaps;
 mod inputs;
 
 use fft::{Fft, detrend_window};
 
+pub use deferred::Deferred;
 pub use inputs::{combined_band_fit, estimate_inputs, welch_inputs};
 
 use crate::error::{Error, Result};

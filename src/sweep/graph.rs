@@ -27,6 +27,9 @@ pub(super) enum Task {
     /// final rows are what it reads). Per cell rather than per pair: a pair's refits then do
     /// not queue one behind the other along the chain of sub-models up the grid.
     Nested(Cell),
+    /// The spectral estimate the band fits compare with (`spectral::Deferred`): before every
+    /// least-squares finish (the first fits judged), beside the own minima.
+    Spectrum,
 }
 
 /// A pair's least-squares phase costs about this many of its Huber cells, its own minima
@@ -38,6 +41,10 @@ const LS_NESTED_CELLS: u64 = 2;
 /// A cell's nested check is mostly a comparison (on the paper grid 353 of 3840 cells were
 /// refitted, by warm fits): one unit, where a Huber cell weighs nB + nF.
 const NESTED_CHECK: u64 = 1;
+/// The robust spectral estimate costs about this many units (a Huber cell of d parameters
+/// weighs d): on the paper grid it took 0.14-0.16 s, some 40 cells of its mean d = 20, and
+/// both grow with the record's length. Only its place among the ready tasks depends on it.
+const SPECTRUM: u64 = 800;
 
 /// The sweep's tasks, their dependencies and priorities: every pair's own least-squares minima
 /// on their own, the least-squares phase of a pair finished after its own minima and its
@@ -49,8 +56,14 @@ const NESTED_CHECK: u64 = 1;
 /// [`LS_NESTED_CELLS`] cells for the two parts of a least-squares phase and [`NESTED_CHECK`]
 /// units for a nested check. Task `i` is the finish of pair `i` of `plan.ls_pairs()` (as the
 /// sub-model indices are), the own minima follow them; the checks come last, in the order of
-/// `plan.cells()`.
-pub(super) fn tasks(plan: &Plan, nested_starts: bool, nested_check: bool) -> (Vec<Task>, schedule::Graph) {
+/// `plan.cells()`. With `spectrum`, the spectral estimate is the last task, and every
+/// least-squares finish comes after it.
+pub(super) fn tasks(
+    plan: &Plan,
+    nested_starts: bool,
+    nested_check: bool,
+    spectrum: bool,
+) -> (Vec<Task>, schedule::Graph) {
     let ls_pairs = plan.ls_pairs();
     let subs = plan.ls_sub_models();
     let n = ls_pairs.len();
@@ -98,6 +111,13 @@ pub(super) fn tasks(plan: &Plan, nested_starts: bool, nested_check: bool) -> (Ve
             cost.push(NESTED_CHECK);
         }
     }
+    if spectrum {
+        let id = tasks.len();
+        tasks.push(Task::Spectrum);
+        after.push(Vec::new());
+        cost.push(SPECTRUM);
+        after.iter_mut().take(n).for_each(|a| a.push(id));
+    }
     (tasks, schedule::Graph::with_bottom_levels(after, &cost))
 }
 
@@ -134,19 +154,21 @@ pub(super) fn task_times(plan: &Plan, tasks: &[Task], graph: &schedule::Graph) -
         .enumerate()
         .map(|(id, task)| {
             let (kind, pair, k_index) = match *task {
-                Task::LsOwn(i) => ("least_squares_own", ls_pairs[i], None),
-                Task::Ls(i) => ("least_squares", ls_pairs[i], None),
-                Task::Pair(p) if plan.start == StartStrategy::Chains => ("chains", plan.pairs[p], None),
-                Task::Pair(p) => ("neighbour", plan.pairs[p], None),
-                Task::Cell(c) => ("cell", plan.pairs[c.pair], Some(c.k_index)),
-                Task::Nested(c) => ("nested", plan.pairs[c.pair], Some(c.k_index)),
+                Task::LsOwn(i) => ("least_squares_own", Some(ls_pairs[i]), None),
+                Task::Ls(i) => ("least_squares", Some(ls_pairs[i]), None),
+                Task::Pair(p) if plan.start == StartStrategy::Chains => ("chains", Some(plan.pairs[p]), None),
+                Task::Pair(p) => ("neighbour", Some(plan.pairs[p]), None),
+                Task::Cell(c) => ("cell", Some(plan.pairs[c.pair]), Some(c.k_index)),
+                Task::Nested(c) => ("nested", Some(plan.pairs[c.pair]), Some(c.k_index)),
+                Task::Spectrum => ("spectrum", None, None),
             };
+            let orders = pair.map(|p| p.inputs()[0]);
             TaskTime {
                 id,
                 kind,
-                nb: pair.inputs()[0].nb,
-                nf: pair.inputs()[0].nf,
-                delay: pair.inputs()[0].delay,
+                nb: orders.map_or(0, |o| o.nb),
+                nf: orders.map_or(0, |o| o.nf),
+                delay: orders.map_or(0, |o| o.delay),
                 k_index,
                 after: graph.after[id].clone(),
                 priority: graph.priority[id],
@@ -192,7 +214,7 @@ mod tests {
         for start in [StartStrategy::Chains, StartStrategy::Ls] {
             let plan = grid(start);
             let n = plan.pairs.len();
-            let (tasks, graph) = tasks(&plan, true, true);
+            let (tasks, graph) = tasks(&plan, true, true, false);
             let huber = if start == StartStrategy::Ls { plan.n_cells() } else { n };
             assert_eq!(tasks.len(), 2 * n + huber + plan.n_cells());
             let subs = plan.ls_sub_models();
@@ -203,6 +225,7 @@ mod tests {
                     Task::Ls(p) => std::iter::once(n + p).chain(subs[p].iter().copied()).collect(),
                     Task::Pair(p) => vec![p],
                     Task::Cell(c) => vec![c.pair],
+                    Task::Spectrum => unreachable!("no spectral estimate in this graph"),
                     // The task that computes the cell and its sub-models' checks at its k.
                     Task::Nested(c) => (0..tasks.len())
                         .filter(|&j| match tasks[j] {
@@ -233,11 +256,22 @@ mod tests {
             assert!(matches!(tasks[*order.last().unwrap()], Task::Nested(Cell { pair, .. }) if pair == n - 1));
             // Without the nested check (a shard) no check tasks; without nested starts the
             // least-squares finishes wait for their own minima only.
-            let (shard, _) = super::tasks(&plan, true, false);
+            let (shard, _) = super::tasks(&plan, true, false, false);
             assert_eq!(shard.len(), 2 * n + huber);
             assert!(!shard.iter().any(|t| matches!(t, Task::Nested(_))));
-            let (_, alone) = super::tasks(&plan, false, true);
+            let (_, alone) = super::tasks(&plan, false, true, false);
             assert!((0..n).all(|p| alone.after[p] == [n + p]));
+            // With a spectral estimate to make it is the last task, every least-squares finish
+            // (the first task that judges a fit) comes after it, nothing else waits for it
+            // directly, and a single worker makes it first.
+            let (with, g) = super::tasks(&plan, true, true, true);
+            let spectrum = with.len() - 1;
+            assert_eq!((with.len(), with[spectrum]), (tasks.len() + 1, Task::Spectrum));
+            assert!(g.after[spectrum].is_empty());
+            for (i, t) in with.iter().enumerate() {
+                assert_eq!(g.after[i].contains(&spectrum), matches!(t, Task::Ls(_)), "{t:?}");
+            }
+            assert_eq!(g.serial_order()[0], spectrum);
         }
     }
 }

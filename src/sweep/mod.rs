@@ -43,7 +43,7 @@ mod cells;
 mod graph;
 mod nested;
 
-use crate::spectral::SpectralEstimate;
+use crate::spectral::Deferred;
 use crate::table::{CellRow, RowKey, sort_rows};
 use cells::{chain_cells, huber_cell};
 pub use graph::{MIN_LIVE_WORKSPACES, WORKSPACE_BUDGET_BYTES, live_workspaces};
@@ -60,8 +60,9 @@ pub struct Context<'a> {
     /// The records with their levels taken out ([`Levels::apply`]).
     pub est: &'a Record,
     pub val: Option<&'a Record>,
-    /// The spectral estimate, one per input, and the band's bins.
-    pub band: Option<(&'a [SpectralEstimate], &'a [usize])>,
+    /// The spectral estimate (one per input, made on first use: [`Task::Spectrum`]) and the
+    /// band's bins.
+    pub band: Option<&'a Deferred>,
     pub solver: SolverOptions,
     /// The levels taken out of the records; `levels.mode` says whether the fits estimate an
     /// output offset.
@@ -77,7 +78,7 @@ impl Context<'_> {
             validation: self.val.map(|v| (&v.u[..], &v.y[..])),
             validation_seams: self.val.map_or(&[][..], |v| &v.seams[..]),
             validation_missing: self.val.map_or(&[][..], |v| &v.missing[..]),
-            band: self.band,
+            band: self.band.map(|d| (d.estimate(self.est), &d.bins[..])),
             initial_state: self.initial_state,
             criterion_only: false,
         }
@@ -242,7 +243,6 @@ fn chain_theta(ctx: &Context, row: &CellRow) -> Option<Vec<f64>> {
 struct Sweep<'s> {
     plan: &'s Plan,
     ctx: &'s Context<'s>,
-    judge: Judge<'s>,
     workspaces: Workspaces,
     progress: &'s Progress,
     /// Rows of earlier runs.
@@ -279,7 +279,7 @@ fn run_in_pool<'s>(
     stop: &'s AtomicBool,
     nested: bool,
 ) -> (Vec<CellRow>, Vec<CellRow>) {
-    let (tasks, graph) = tasks(plan, ctx.solver.nested_starts, nested);
+    let (tasks, graph) = tasks(plan, ctx.solver.nested_starts, nested, ctx.band.is_some_and(|d| !d.is_ready()));
     let rows = ctx.est.u.len().max(ctx.val.map_or(0, |v| v.u.len()));
     let threads = rayon::current_num_threads();
     let live = live_workspaces(threads, rows);
@@ -298,7 +298,6 @@ fn run_in_pool<'s>(
     let sweep = Sweep {
         plan,
         ctx,
-        judge: ctx.judge(),
         workspaces: Workspaces::new(ctx),
         progress,
         done,
@@ -323,6 +322,7 @@ fn run_in_pool<'s>(
             Task::Pair(p) => sweep.neighbour_chain(p),
             Task::Cell(cell) => sweep.independent_cell(cell),
             Task::Nested(cell) => sweep.nested_check(cell),
+            Task::Spectrum => sweep.spectrum(),
         }
         if let (Some(prof), Some(since)) = (profile, since) {
             prof.task(i, since);
@@ -338,9 +338,25 @@ fn run_in_pool<'s>(
     (rows, checked.into_iter().filter_map(|c| c.into_inner().flatten()).collect())
 }
 
-impl Sweep<'_> {
+impl<'s> Sweep<'s> {
     fn stopped(&self) -> bool {
         self.stop.load(Ordering::Relaxed)
+    }
+
+    /// What the fits are judged against; the spectral estimate made if no task made it yet
+    /// (the judging tasks come after [`Task::Spectrum`], so none waits for it in a sweep).
+    fn judge(&self) -> Judge<'s> {
+        self.ctx.judge()
+    }
+
+    /// Task [`Task::Spectrum`]: the spectral estimate the band fits compare with, beside the
+    /// pairs' own least-squares minima (none of which needs it). Not after a stop: a judging
+    /// task still to come would make it.
+    fn spectrum(&self) {
+        if let Some(d) = self.ctx.band.filter(|_| !self.stopped()) {
+            let _span = Span::start(self.ctx.profile.as_deref(), Phase::Spectrum);
+            d.estimate(self.ctx.est);
+        }
     }
 
     fn huber_key(&self, cell: Cell) -> RowKey {
@@ -447,7 +463,7 @@ impl Sweep<'_> {
         };
         let fit = catch_unwind(AssertUnwindSafe(|| {
             let found = found.unwrap_or_else(|| estimate::own_minima(&prob, &ctx.solver, nested.is_empty(), ws));
-            estimate::finish_ls(&prob, &self.judge, &ctx.solver, found, nested, ws)
+            estimate::finish_ls(&prob, &self.judge(), &ctx.solver, found, nested, ws)
         }));
         let (row, alternatives) = match fit {
             Ok(fit) => {
@@ -476,7 +492,7 @@ impl Sweep<'_> {
         }
         // A pair without a fit here was skipped because of a stop.
         let Some((pair_ls, _)) = self.pair_fit(cell.pair) else { return };
-        let row = self.workspaces.with(|ws| huber_cell(self.plan, self.ctx, &self.judge, pair_ls, cell, None, ws));
+        let row = self.workspaces.with(|ws| huber_cell(self.plan, self.ctx, &self.judge(), pair_ls, cell, None, ws));
         (self.on_row)(&row);
         self.progress.inc(1);
         self.add_rows(cell.pair, vec![row]);
@@ -492,7 +508,7 @@ impl Sweep<'_> {
         if keys.iter().all(|&d| d) {
             return;
         }
-        let (plan, ctx, judge) = (self.plan, self.ctx, &self.judge);
+        let (plan, ctx, judge) = (self.plan, self.ctx, &self.judge());
         let stopped = || self.stopped();
         let rows = self.workspaces.with(|ws| {
             chain_cells(plan, ctx, judge, pair_ls, p, &order, &keys, ws, &stopped, self.on_row, self.progress)
@@ -515,7 +531,7 @@ impl Sweep<'_> {
                         continue;
                     }
                     None if self.stopped() => break,
-                    None => huber_cell(self.plan, self.ctx, &self.judge, pair_ls, cell, prev.as_deref(), ws),
+                    None => huber_cell(self.plan, self.ctx, &self.judge(), pair_ls, cell, prev.as_deref(), ws),
                 };
                 // From the row, like a resumed chain: one path, the same bits.
                 prev = chain_theta(self.ctx, &row).or(prev);
@@ -548,7 +564,7 @@ impl Sweep<'_> {
                 .filter_map(|s| self.checked[s * nks + cell.k_index].get()?.as_ref())
                 .collect();
             let sub = |key: RowKey| subs.iter().copied().find(|r| r.key == key);
-            nested::check_cell(self.plan, self.ctx, &self.judge, &self.workspaces, &row, &sub).unwrap_or(row)
+            nested::check_cell(self.plan, self.ctx, &self.judge(), &self.workspaces, &row, &sub).unwrap_or(row)
         });
         let _ = self.checked[cell.pair * nks + cell.k_index].set(checked);
     }
