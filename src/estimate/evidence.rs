@@ -17,8 +17,9 @@
 //! The inverse is the Cholesky inverse of the formed, diagonally scaled Gram matrix `A` (unit
 //! diagonal) when `max_i (A^-1)_ii <= 1e11` ([`COND_LIMIT`]); above, forming `A` has squared a
 //! condition that rounding no longer survives, and the inverse is `R^-1 R^-T` from the
-//! triangular factor of the scaled Jacobian, `J_s = Q R` (shifted CholeskyQR3 started from `A`,
-//! two passes over the rows, Householder QR where it fails; O(N d^2)), whose rounding error
+//! triangular factor of the scaled Jacobian, `J_s = Q R` (CholeskyQR2 from `A`'s own Cholesky
+//! factor, one pass over the rows, where its first `Q` is close to orthogonal; else shifted
+//! CholeskyQR3 from `A`, two passes; Householder QR where that fails; O(N d^2)), whose rounding error
 //! grows with `cond(J_s)` instead of `cond(J_s)^2` ([`super::jacobian_r`]).
 //!
 //! **Residual tests** (whiteness, independence from the input): [`super::residual_tests`].
@@ -279,12 +280,13 @@ fn covariance_of(
         return None;
     }
     let a = faer::Mat::<f64>::from_fn(d, d, |i, j| h[i * d + j] / (scale[i] * scale[j]));
-    let inv = crate::dense::Llt::new(a.as_ref()).map(|chol| chol.inverse());
+    let chol = crate::dense::Llt::new(a.as_ref());
+    let inv = chol.as_ref().map(|chol| chol.inverse());
     let inv: Vec<f64> = match inv {
         // A unit-diagonal matrix has max_i inv_ii >= 1/(d lambda_min) and <= 1/lambda_min:
         // the diagonal of the inverse bounds the condition the Cholesky inverse had to face.
         Some(inv) if (0..d).all(|i| inv[(i, i)] <= COND_LIMIT) => (0..d * d).map(|ij| inv[(ij / d, ij % d)]).collect(),
-        _ => qr_inverse(prob, xu, xy, &scale, a.as_ref())?,
+        _ => qr_inverse(prob, xu, xy, &scale, a.as_ref(), chol.as_ref())?,
     };
     Some((0..d * d).map(|ij| inv[ij] / (scale[ij / d] * scale[ij % d]) * kappa / n as f64).collect())
 }

@@ -5,6 +5,13 @@
 //! `scale_j sqrt(N_O)` (unit column norms); its rows are built in blocks of [`ROWS`] from the
 //! solver's signals `xu`, `xy`, never as one N x d matrix.
 //!
+//! **CholeskyQR2 first** (Yamamoto, Nakatsukasa, Yanagisawa, Fukaya, ETNA 44 (2015) 306-326):
+//! the evidence has the Cholesky factor `L1` of `G1 = J_s^T J_s` already (its formed inverse was
+//! too ill-conditioned, not impossible), so `Q1 = J L1^-T`, `G2 = Q1^T Q1`, `L = L1 chol(G2)`:
+//! one pass over the record. Accepted when `||G2 - I||_F <= 1/2` ([`QR2_DEPARTURE`]): `Q1` is
+//! then well-conditioned and the second step is as accurate as Householder's; otherwise (from
+//! conditions of `G1` near 1e16, or without `L1`) shifted CholeskyQR3.
+//!
 //! **Shifted CholeskyQR3** (Fukaya, Kannan, Nakatsukasa, Yamamoto, Yanagisawa, SIAM J. Sci.
 //! Comput. 42 (2020) A477-A503):
 //!
@@ -106,6 +113,29 @@ impl<'a> ScaledJacobian<'a> {
         g
     }
 
+    /// `L = R^T` by CholeskyQR2 from the Cholesky factor `l1` of `G1 = J_s^T J_s` (the
+    /// evidence's, unshifted): `Q1 = J L1^-T`, `G2 = Q1^T Q1`, `L = L1 chol(G2)`, one pass over
+    /// the rows. None when `Q1` is not close to orthogonal (`||G2 - I||_F > `[`QR2_DEPARTURE`]),
+    /// or `G2`'s Cholesky fails: shifted CholeskyQR3 then.
+    fn cholesky_qr2(&self, l1: &Llt) -> Option<Mat<f64>> {
+        let d = self.factor.len();
+        let mut block = Mat::zeros(ROWS.min(self.rows()), d);
+        let g2 = self.gram(&[l1], &mut block);
+        let departure: f64 = (0..d)
+            .flat_map(|j| (j..d).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let e = g2[(i, j)] - if i == j { 1.0 } else { 0.0 };
+                if i == j { e * e } else { 2.0 * e * e }
+            })
+            .sum::<f64>()
+            .sqrt();
+        if !(departure <= QR2_DEPARTURE) {
+            return None;
+        }
+        let l2 = Llt::new(g2.as_ref())?;
+        Some(dense::mul(l1.factor(), l2.factor()))
+    }
+
     /// `L = R^T` by shifted CholeskyQR3 from `G1 = J_s^T J_s` (`g1`, lower triangle read);
     /// None when one of its Cholesky factorisations fails.
     fn cholesky_qr3(&self, g1: MatRef<'_, f64>) -> Option<Mat<f64>> {
@@ -139,18 +169,33 @@ impl<'a> ScaledJacobian<'a> {
     }
 }
 
+/// Largest `||G2 - I||_F` at which CholeskyQR2's `Q1` counts as close to orthogonal: its
+/// singular values then lie within `sqrt(1 -/+ 1/2)`, so `Q1` has a condition below `sqrt(3)`
+/// and the second step orthogonalises it to `O(u)`; the rows `Q1 L1^T` reproduce `J_s` to
+/// `O(u) ||J_s||` since `||Q1|| ||L1|| <= 1.23 ||J_s||` (Yamamoto, Nakatsukasa, Yanagisawa,
+/// Fukaya, ETNA 44 (2015) 306-326: CholeskyQR2 is as accurate as Householder once its first
+/// `Q` is well-conditioned). `G2 - I` is `L1^-1 E L1^-T` for the rounding `E` of `G1` and its
+/// factor, `~u cond(G1)` in size: the check passes up to a condition of some 1e14-1e15.
+const QR2_DEPARTURE: f64 = 0.5;
+
 /// `(J_s^T J_s)^-1` (d x d, row-major) of the Jacobian with columns scaled by
 /// `1 / (scale sqrt(N_O))`, as `R^-1 R^-T`; `a` is `J_s^T J_s` as the normal equations formed
-/// it (unit diagonal; lower triangle read). None when R is singular.
+/// it (unit diagonal; lower triangle read) and `chol` its Cholesky factor when it has one
+/// (CholeskyQR2 from it, one pass over the rows; else, or when its `Q` is not close to
+/// orthogonal, shifted CholeskyQR3, two passes). None when R is singular.
 pub(super) fn qr_inverse(
     prob: &Problem,
     xu: &[f64],
     xy: &[f64],
     scale: &[f64],
     a: MatRef<'_, f64>,
+    chol: Option<&Llt>,
 ) -> Option<Vec<f64>> {
     let jac = ScaledJacobian::new(prob, xu, xy, scale);
-    let l = jac.cholesky_qr3(a).unwrap_or_else(|| jac.householder().transpose().to_owned());
+    let l = chol
+        .and_then(|l1| jac.cholesky_qr2(l1))
+        .or_else(|| jac.cholesky_qr3(a))
+        .unwrap_or_else(|| jac.householder().transpose().to_owned());
     inverse(l.as_ref(), prob.dim())
 }
 
@@ -228,22 +273,29 @@ mod tests {
             let chol: Vec<f64> = (0..d * d).map(|ij| chol[(ij / d, ij % d)]).collect();
             let jac = ScaledJacobian::new(&prob, &xu, &xy, &scale);
             let cq = jac.cholesky_qr3(a.as_ref()).expect("well conditioned");
-            for (method, l) in [("CholeskyQR3", cq.clone()), ("Householder", jac.householder().transpose().to_owned())]
-            {
+            let l1 = Llt::new(a.as_ref()).expect("well conditioned");
+            let cq2 = jac.cholesky_qr2(&l1).expect("well conditioned");
+            for (method, l) in [
+                ("CholeskyQR3", cq.clone()),
+                ("CholeskyQR2", cq2.clone()),
+                ("Householder", jac.householder().transpose().to_owned()),
+            ] {
                 let qr = inverse(l.as_ref(), d).expect("full rank");
                 let diff = max_rel_diff(&qr, &chol);
                 assert!(diff <= 1e-12, "seams {seams:?}, {} missing, {method}: {diff:e}", missing.len());
             }
-            assert_eq!(qr_inverse(&prob, &xu, &xy, &scale, a.as_ref()), inverse(cq.as_ref(), d));
+            // With the Gram matrix's factor, CholeskyQR2; without, shifted CholeskyQR3.
+            assert_eq!(qr_inverse(&prob, &xu, &xy, &scale, a.as_ref(), Some(&l1)), inverse(cq2.as_ref(), d));
+            assert_eq!(qr_inverse(&prob, &xu, &xy, &scale, a.as_ref(), None), inverse(cq.as_ref(), d));
             // Where a Cholesky factorisation fails (here step 1's, of a matrix that is not
             // positive definite), R is Householder's.
             let householder = inverse(jac.householder().transpose(), d);
-            assert_eq!(qr_inverse(&prob, &xu, &xy, &scale, (-&a).as_ref()), householder);
+            assert_eq!(qr_inverse(&prob, &xu, &xy, &scale, (-&a).as_ref(), None), householder);
         }
     }
 
-    /// Shifted CholeskyQR3 inverts ill-conditioned Jacobians as accurately as Householder's
-    /// QR: the lightly damped OE(12,12) of `tests/covariance_large.rs` and its sub-models with
+    /// Shifted CholeskyQR3, and CholeskyQR2 wherever its first `Q` passes the check, invert
+    /// ill-conditioned Jacobians as accurately as Householder's QR: the lightly damped OE(12,12) of `tests/covariance_large.rs` and its sub-models with
     /// the first 1..6 pole pairs (radii as there and 1 % closer to the origin; B of the same
     /// order from its zeros) at their true parameters, white binary input, N = 5000: conditions
     /// of the unit-diagonal Gram matrix `A` from 1e2 to 2.5e18 (1e11..1e15: OE(8,8), OE(10,10)).
@@ -271,7 +323,7 @@ mod tests {
                 systems.push((zeros(zp, &real_zeros[..nr]), oe::poly_from_poles(&p, &[])));
             }
         }
-        let mut worst: f64 = 0.0;
+        let (mut worst, mut qr2_reach): (f64, f64) = (0.0, 0.0);
         for (b, f) in &systems {
             let prob = Problem {
                 u: &u,
@@ -287,18 +339,39 @@ mod tests {
             let cq = jac.cholesky_qr3(a.as_ref()).expect("shifted CholeskyQR3 up to cond(J_s) ~ 1/u");
             let cq = inverse(cq.as_ref(), d).expect("full rank");
             let hh = inverse(jac.householder().transpose(), d).expect("full rank");
+            // CholeskyQR2 from the Gram matrix's own factor, where it has one and its Q1 is
+            // close enough to orthogonal; what qr_inverse gives in either case.
+            let l1 = Llt::new(a.as_ref());
+            let cq2 =
+                l1.as_ref().and_then(|l1| jac.cholesky_qr2(l1)).map(|l| inverse(l.as_ref(), d).expect("full rank"));
+            let chosen = qr_inverse(&prob, &xu, &xy, &scale, a.as_ref(), l1.as_ref()).expect("full rank");
+            assert_eq!(chosen, cq2.clone().unwrap_or_else(|| cq.clone()));
             let largest = |m: &Mat<f64>| dense::symmetric_eigen(m.as_ref()).expect("symmetric").0[d - 1];
             let cond = largest(&a) * largest(&Mat::from_fn(d, d, |i, j| hh[i * d + j]));
             let diff = max_rel_diff(&cq, &hh);
             let bound = f64::EPSILON / 2.0 * (10.0 * d as f64 + cond.sqrt());
             worst = worst.max(cond);
+            let diff2 = cq2.as_ref().map(|c| max_rel_diff(c, &hh));
+            if diff2.is_some() {
+                qr2_reach = qr2_reach.max(cond);
+            }
             eprintln!(
-                "OE({}, {}): cond(A) {cond:.1e}, CholeskyQR3 vs Householder {diff:.1e}, bound {bound:.1e}",
+                "OE({}, {}): cond(A) {cond:.1e}, CholeskyQR3 vs Householder {diff:.1e}, CholeskyQR2 {diff2:?}, bound {bound:.1e}",
                 b.len(),
                 f.len()
             );
             assert!(diff <= bound, "OE({}, {}): cond(A) {cond:.1e}: {diff:e} > {bound:e}", b.len(), f.len());
+            if let Some(diff2) = diff2 {
+                assert!(
+                    diff2 <= bound,
+                    "OE({}, {}) CholeskyQR2: cond(A) {cond:.1e}: {diff2:e} > {bound:e}",
+                    b.len(),
+                    f.len()
+                );
+            }
         }
         assert!(worst > 1e15, "the Jacobians reach a condition of 1e15: {worst:e}");
+        // CholeskyQR2 serves beyond the Gram matrix's own inverse (1e11, COND_LIMIT).
+        assert!(qr2_reach > 1e12, "CholeskyQR2 up to a condition of {qr2_reach:e}");
     }
 }
