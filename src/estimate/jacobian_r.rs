@@ -129,7 +129,8 @@ impl<'a> ScaledJacobian<'a> {
             })
             .sum::<f64>()
             .sqrt();
-        if !(departure <= QR2_DEPARTURE) {
+        // A NaN departure (a non-finite row) fails too.
+        if departure.is_nan() || departure > QR2_DEPARTURE {
             return None;
         }
         let l2 = Llt::new(g2.as_ref())?;
