@@ -44,6 +44,7 @@ pub mod chains;
 pub mod criteria;
 pub mod evidence;
 pub mod fit;
+pub mod fit_percent;
 pub mod huber;
 pub mod initial_guess;
 pub mod initial_state;
@@ -64,9 +65,8 @@ pub mod workspace;
 
 pub use chains::{ChainWalk, Chains, fit_huber_multi, fit_huber_starts};
 pub(crate) use fit::judged;
-pub use fit::{
-    Assessment, HuberFit, Judge, LsFit, PairProblem, StartKind, embed, fit_huber, fit_ls_from, fit_percent, theta_of,
-};
+pub use fit::{Assessment, HuberFit, Judge, LsFit, PairProblem, StartKind, embed, fit_huber, fit_ls_from, theta_of};
+pub use fit_percent::fit_percent;
 pub use huber::Loss;
 pub use initial_state::InitialState;
 pub use least_squares::{OwnMinima, exploration_head, finish_ls, fit_ls, fit_ls_nested, own_minima};

@@ -15,7 +15,7 @@ use super::problem::{Problem, output_filtered};
 /// - the evidence ([`super::evidence::Scratch`]): the robust residuals, their centred copy,
 ///   the centred input and the input it was computed from (4);
 /// - a fit's judged outputs on the estimation and validation records, and those records'
-///   outputs as the fit %'s sums of them were taken from ([`super::fit::OutputSpread`]) (4; the fitted free
+///   outputs as the fit %'s sums of them were taken from ([`super::fit_percent::OutputSpread`]) (4; the fitted free
 ///   response's impulse response and residual are as long as the response takes to decay);
 /// - the initial guesses stream the regressions in 256-row blocks and simulate one instrument
 ///   vector.
@@ -46,8 +46,8 @@ pub struct Workspace {
     pub(super) judged: Vec<f64>,
     pub(super) judged_val: Vec<f64>,
     /// The fit %'s sums of the estimation and validation outputs.
-    pub(super) spread: super::fit::OutputSpread,
-    pub(super) spread_val: super::fit::OutputSpread,
+    pub(super) spread: super::fit_percent::OutputSpread,
+    pub(super) spread_val: super::fit_percent::OutputSpread,
     pub(super) free_response: super::initial_state::Scratch,
     /// Criterion after each accepted step (first entry: the start), when `record_trace`.
     pub trace: Vec<f64>,
