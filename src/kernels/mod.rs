@@ -288,6 +288,37 @@ mod tests {
         }
     }
 
+    /// The packed Jacobian rows: the same bits in both builds (the AVX2 build reverses four
+    /// lags at a time), every order up to 13 with every delay up to 2 and a padded stride, and
+    /// a row whose lags leave the record panics in both.
+    #[test]
+    fn packed_rows_are_the_same_bits_in_both_builds() {
+        let n = 64;
+        let xu: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin() + i as f64 * 1e-3).collect();
+        let xy: Vec<f64> = (0..n).map(|i| if i == 30 { -0.0 } else { (i as f64 * 0.11).cos() - 0.5 }).collect();
+        for nb in 1..=13usize {
+            for nf in 0..=13usize {
+                for delay in 0..=2usize {
+                    let d = nb + nf;
+                    let dp = d.div_ceil(4) * 4 + 4;
+                    let first = (delay + nb - 1).max(nf).max(delay) as u32;
+                    let rows: Vec<u32> = (first..n as u32).step_by(3).collect();
+                    let (mut a, mut b) = (vec![f64::NAN; rows.len() * dp], vec![f64::NAN; rows.len() * dp]);
+                    pack_rows(&xu, &xy, &rows, nb, nf, delay, dp, &mut a);
+                    generic::pack_rows(&xu, &xy, &rows, nb, nf, delay, dp, &mut b);
+                    assert!(a.iter().zip(&b).all(|(p, q)| p.to_bits() == q.to_bits()), "nb {nb} nf {nf} delay {delay}");
+                    let t = rows[rows.len() / 2] as usize;
+                    assert_eq!(a[rows.len() / 2 * dp + nb.min(d) - 1], xu[t + 1 - delay - nb]);
+                }
+            }
+        }
+        let outside = std::panic::catch_unwind(|| {
+            let mut out = vec![0.0; 8];
+            pack_rows(&xu, &xy, &[2], 4, 3, 1, 8, &mut out);
+        });
+        assert!(outside.is_err(), "a row reaching before the record panics");
+    }
+
     /// The criterion's sums and the residual pass: both builds give the same bits, and the
     /// sums are the definition's (up to the order of the additions).
     #[test]
