@@ -413,17 +413,15 @@ impl NormalEquations {
                     (Seq::U, Seq::Y) => 2,
                     (Seq::Y, Seq::U) => 3,
                 }];
-                // Terms s in [N - la, N - 1 - lag] belong to t >= N and must not count.
-                let mut tail = 0.0;
-                if la < n {
-                    for s in n - la..n - lag {
-                        tail += a[s] * b[s + lag];
-                    }
-                } else {
+                // Terms s in [N - la, N - 1 - lag] belong to t >= N and must not count (summed
+                // over zipped slices: the same additions in the same order, no bounds check
+                // per term).
+                if la >= n {
                     // The column is entirely shifted out of the record.
                     h[c * d + e] = 0.0;
                     continue;
                 }
+                let tail = a[n - la..n - lag].iter().zip(&b[n - la + lag..]).fold(0.0, |t, (x, y)| t + x * y);
                 h[c * d + e] = gc * ge * (full - tail);
             }
         }
