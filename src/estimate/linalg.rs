@@ -75,6 +75,25 @@ pub(crate) fn cholesky_solve(l: &[f64], d: usize, x: &mut [f64]) {
 mod tests {
     use super::*;
 
+    /// Uniform numbers in [-1/2, 1/2) from a linear congruential generator.
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
+    /// `A = M M^T + ridge I` (d x d, row-major) for a random M: symmetric positive definite.
+    fn spd(d: usize, rnd: &mut impl FnMut() -> f64, ridge: f64) -> Vec<f64> {
+        let m: Vec<f64> = (0..d * d).map(|_| rnd()).collect();
+        (0..d * d)
+            .map(|k| {
+                let (i, j) = (k / d, k % d);
+                (0..d).map(|l| m[i * d + l] * m[j * d + l]).sum::<f64>() + if i == j { ridge } else { 0.0 }
+            })
+            .collect()
+    }
+
     #[test]
     fn cholesky_solves_spd_system() {
         let a0 = [4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0];
@@ -94,19 +113,9 @@ mod tests {
     /// loop below), every size up to 30.
     #[test]
     fn four_rows_at_a_time_are_the_bits_of_one() {
-        let mut seed = 11u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = uniform(11);
         for d in 1..=30 {
-            let m: Vec<f64> = (0..d * d).map(|_| rnd()).collect();
-            let a0: Vec<f64> = (0..d * d)
-                .map(|k| {
-                    let (i, j) = (k / d, k % d);
-                    (0..d).map(|l| m[i * d + l] * m[j * d + l]).sum::<f64>() + if i == j { 0.1 } else { 0.0 }
-                })
-                .collect();
+            let a0 = spd(d, &mut rnd, 0.1);
             let mut want = a0.clone();
             for j in 0..d {
                 let mut s = want[j * d + j];
@@ -133,20 +142,9 @@ mod tests {
     /// upper triangle is left as it was (the solver reads only the lower factor).
     #[test]
     fn cholesky_factors_and_solves_every_size() {
-        let mut seed = 5u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = uniform(5);
         for d in 1..=30 {
-            let m: Vec<f64> = (0..d * d).map(|_| rnd()).collect();
-            // A = M M^T + d I: symmetric positive definite.
-            let a0: Vec<f64> = (0..d * d)
-                .map(|k| {
-                    let (i, j) = (k / d, k % d);
-                    (0..d).map(|l| m[i * d + l] * m[j * d + l]).sum::<f64>() + if i == j { d as f64 } else { 0.0 }
-                })
-                .collect();
+            let a0 = spd(d, &mut rnd, d as f64);
             let mut a = a0.clone();
             assert!(cholesky(&mut a, d), "d = {d}");
             for i in 0..d {
