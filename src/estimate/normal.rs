@@ -70,10 +70,9 @@ pub struct NormalEquations {
     scaled: Vec<f64>,
     /// Column sums `sum_t w_t psi_t` of the offset's row ([`NormalEquations::add_offset`]).
     sums: Vec<f64>,
-    /// `sum_k alpha_k psi_{t_k}` and `sum_k alpha_k` over the rows of the last weighted sum
-    /// ([`NormalEquations::add_rows`]), d entries padded to a multiple of 4.
+    /// `sum_k alpha_k psi_{t_k}` over the rows of the last weighted sum
+    /// ([`NormalEquations::add_offset`]'s scratch).
     row_sums: Vec<f64>,
-    row_weight: f64,
     /// The last `build` summed the weighted rows directly (`rows`, `alpha` = the rows with
     /// w_t > 0 and their weights) rather than as a correction (`alpha = w_t - 1`).
     direct: bool,
@@ -121,7 +120,7 @@ impl NormalEquations {
             return self.build_several(SeveralForm::Correlations, lay, offset, seams, xu, xy, w, r, h, g);
         }
         if seams.is_empty() {
-            self.build_for(lay, xu, xy, w, r, h, g, offset);
+            self.build(lay, xu, xy, w, r, h, g);
             if offset {
                 self.add_offset(lay, xu, xy, w, r, h, g);
             }
@@ -141,7 +140,7 @@ impl NormalEquations {
             let e = start..end;
             let wk = w.map(|w| &w[e.clone()]);
             let (xu, xy, r) = (&xu[e.clone()], &xy[e.clone()], &r[e.clone()]);
-            self.build_for(lay, xu, xy, wk, r, &mut part_h, &mut part_g, offset);
+            self.build(lay, xu, xy, wk, r, &mut part_h, &mut part_g);
             if offset {
                 self.add_offset(lay, xu, xy, wk, r, &mut part_h, &mut part_g);
             }
@@ -170,24 +169,6 @@ impl NormalEquations {
         r: &[f64],
         h: &mut [f64],
         g: &mut [f64],
-    ) {
-        self.build_for(lay, xu, xy, w, r, h, g, true)
-    }
-
-    /// [`Self::build`]; the weighted rows' sums that [`Self::add_offset`] reads are taken only
-    /// when `offset` (an offset's row follows): without one they were d multiply-adds per
-    /// weighted row for nothing, a fifth of the packed product's time.
-    #[allow(clippy::too_many_arguments)]
-    fn build_for(
-        &mut self,
-        lay: &Layout,
-        xu: &[f64],
-        xy: &[f64],
-        w: Option<&[f64]>,
-        r: &[f64],
-        h: &mut [f64],
-        g: &mut [f64],
-        offset: bool,
     ) {
         let n = xu.len();
         let d = lay.dim();
@@ -238,14 +219,14 @@ impl NormalEquations {
             Some(w) if direct => {
                 h.fill(0.0);
                 self.m = compact_rows(&mut self.rows, Some(&mut self.alpha), w, 0.0);
-                self.add_rows(lay, xu, xy, h, offset);
+                self.add_rows(lay, xu, xy, h);
             }
             _ => {
                 self.gram(lay, xu, xy, h);
                 if let Some(w) = w {
                     self.alpha.clear();
                     self.alpha.extend(self.rows[..self.m].iter().map(|&t| w[t as usize] - 1.0));
-                    self.add_rows(lay, xu, xy, h, offset);
+                    self.add_rows(lay, xu, xy, h);
                 }
             }
         }
@@ -262,11 +243,10 @@ impl NormalEquations {
     /// stride) by an output offset c, whose Jacobian column is all ones (METHOD.md 9.1): `h`
     /// becomes (d0 + 1) x (d0 + 1) with the new row `(1/N) sum_t w_t [psi_t, 1]`, and
     /// `g_c = (1/N) sum_t r_t`. The column sums of the unweighted Jacobian are sums of `xu` and
-    /// `xy` less a few end terms; the rows with `w_t != 1` are then corrected by their weighted
-    /// sums, which `build` took while it summed those rows for the Gram matrix (or, when
-    /// `build` summed the weighted rows directly, the sums are those rows'). O(N) here plus
-    /// O(m d) in `build` for m reweighted rows; must follow `build` with the same arguments; no
-    /// allocation after the first call.
+    /// `xy` less a few end terms; the rows with `w_t != 1` that `build` left (with alpha =
+    /// w_t - 1) are then corrected by their weighted sums (or, when `build` summed the weighted
+    /// rows directly, the sums are those rows'). O(N + m d) for m reweighted rows; must follow
+    /// `build` with the same arguments; no allocation after the first call.
     #[allow(clippy::too_many_arguments)]
     pub fn add_offset(
         &mut self,
@@ -308,11 +288,24 @@ impl NormalEquations {
             weight = n as f64;
         }
         if w.is_some() {
-            // The weighted rows' sums, which `build` took along with their product.
+            // The weighted rows' sums over `build`'s rows and weights (alpha = w_t - 1 for the
+            // correction, w_t where it summed the rows directly), row after row. Taken here,
+            // not beside `build`'s product: only a model with an offset reads them (d
+            // multiply-adds per weighted row that the paper's model, `offset: none`, paid for
+            // nothing, a fifth of the packed product's time).
+            let m = self.m;
+            self.row_sums.clear();
+            self.row_sums.resize(d0, 0.0);
+            for (&t, &a) in self.rows[..m].iter().zip(&self.alpha[..m]) {
+                lay.row(xu, xy, t as usize, &mut self.psi);
+                for (s, &p) in self.row_sums.iter_mut().zip(&self.psi) {
+                    *s += a * p;
+                }
+            }
             for (s, p) in self.sums.iter_mut().zip(&self.row_sums) {
                 *s += p;
             }
-            weight += self.row_weight;
+            weight += self.alpha[..m].iter().sum::<f64>();
         }
         for (c, s) in self.sums.iter().enumerate() {
             h[d0 * d + c] = s * inv_n;
@@ -322,31 +315,19 @@ impl NormalEquations {
         g[d0] = sum(r) * inv_n;
     }
 
-    /// `h += sum_k alpha_k psi_{t_k} psi_{t_k}^T` (upper triangle) over `t_k = rows[k]`, and
-    /// when `sums` the rows' weighted sums for an offset's row.
+    /// `h += sum_k alpha_k psi_{t_k} psi_{t_k}^T` (upper triangle) over `t_k = rows[k]`.
     ///
     /// Few rows go one rank-1 update at a time; more are packed into an m x d matrix P and
     /// the sum taken as one product P^T diag(alpha) P (`kernels::syrk_upper`, register-tiled),
     /// which does the same multiply-adds without a load and a store of `h` for each of them.
-    fn add_rows(&mut self, lay: &Layout, xu: &[f64], xy: &[f64], h: &mut [f64], sums: bool) {
+    fn add_rows(&mut self, lay: &Layout, xu: &[f64], xy: &[f64], h: &mut [f64]) {
         let d = lay.dim();
         let m = self.m;
         let (rows, alpha) = (&self.rows[..m], &self.alpha[..m]);
-        // The same rows' weighted sums, for an offset's row (`add_offset`), while they are at
-        // hand: d multiply-adds per row beside the d^2/2 of the product. Without them the
-        // sums are NaN, so an `add_offset` that was not announced shows.
-        self.row_sums.clear();
-        self.row_sums.resize(d.div_ceil(4) * 4, if sums { 0.0 } else { f64::NAN });
-        self.row_weight = if sums { alpha.iter().sum() } else { f64::NAN };
         if m < PACK_MIN_ROWS {
             for (&t, &a) in rows.iter().zip(alpha) {
                 lay.row(xu, xy, t as usize, &mut self.psi);
                 rank1_upper(h, d, &self.psi, a);
-                if sums {
-                    for (s, &p) in self.row_sums.iter_mut().zip(&self.psi) {
-                        *s += a * p;
-                    }
-                }
             }
             return;
         }
@@ -377,13 +358,6 @@ impl NormalEquations {
                 for ((dst, src), &a) in self.scaled.chunks_exact_mut(dp).zip(self.packed.chunks_exact(dp)).zip(alpha) {
                     for (q, &p) in dst.iter_mut().zip(src) {
                         *q = a * p;
-                    }
-                }
-            }
-            if sums {
-                for (row, &a) in self.packed.chunks_exact(dp).zip(alpha) {
-                    for (s, &p) in self.row_sums.iter_mut().zip(row) {
-                        *s += a * p;
                     }
                 }
             }
