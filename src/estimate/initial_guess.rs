@@ -19,24 +19,47 @@ use super::problem::Problem;
 use faer::prelude::ReborrowMut;
 use faer::{Mat, MatMut};
 
-/// Entry (t, c) of the regressor matrix with columns `[u_{t-d-i+1}]_{i=1..nb}` and
+/// What column `c` of the regressor matrix holds: columns `[u_{t-d-i+1}]_{i=1..nb}` and
 /// `[-s2_{t-j}]_{j=1..nf}`, and with an output offset a column of ones: `F (y - c) = B u` is
 /// `y = B u - sum f_j y_{t-j} + F(1) c`, linear in `F(1) c`. Column `dim` is `y_t` itself
-/// (the right-hand side rides along as one more column).
-pub(super) fn regressor(prob: &Problem, s2: &[f64], t: usize, c: usize) -> f64 {
+/// (the right-hand side rides along as one more column). A lagged column is zero where its lag
+/// reaches back across the start of the experiment t belongs to.
+enum Column<'s> {
+    /// `sign * src[t - lag]`.
+    Lagged {
+        src: &'s [f64],
+        lag: usize,
+        negate: bool,
+    },
+    Ones,
+    Target,
+}
+
+fn column<'s>(prob: &Problem<'s>, s2: &'s [f64], c: usize) -> Column<'s> {
     let (nb, nf, delay) = (prob.one().nb, prob.one().nf, prob.one().delay);
-    // No lag reaches back across the start of the experiment t belongs to.
-    let t0 = prob.experiment_start(t);
     if c < nb {
-        let lag = delay + c;
-        if t >= t0 + lag { prob.u[t - lag] } else { 0.0 }
+        Column::Lagged { src: prob.u, lag: delay + c, negate: false }
     } else if c < nb + nf {
-        let lag = c - nb + 1;
-        if t >= t0 + lag { -s2[t - lag] } else { 0.0 }
+        Column::Lagged { src: s2, lag: c - nb + 1, negate: true }
     } else if c < prob.dim() {
-        1.0
+        Column::Ones
     } else {
-        prob.y[t]
+        Column::Target
+    }
+}
+
+/// Entry (t, c) of the regressor matrix ([`Column`]).
+pub(super) fn regressor(prob: &Problem, s2: &[f64], t: usize, c: usize) -> f64 {
+    match column(prob, s2, c) {
+        Column::Lagged { src, lag, negate } => {
+            if t >= prob.experiment_start(t) + lag {
+                if negate { -src[t - lag] } else { src[t - lag] }
+            } else {
+                0.0
+            }
+        }
+        Column::Ones => 1.0,
+        Column::Target => prob.y[t],
     }
 }
 
@@ -101,26 +124,20 @@ fn regressor_rows(prob: &Problem, keep: Option<&[bool]>, s2: &[f64], t0: usize, 
         }
         return;
     }
-    let (nb, nf, delay) = (prob.one().nb, prob.one().nf, prob.one().delay);
     for c in 0..block.ncols() {
         let col =
             block.rb_mut().col_mut(c).try_as_col_major_mut().expect("a column of a column-major block").as_slice_mut();
-        // Rows t >= start + lag take the signal at t - lag; the rows before stay zero.
-        let shifted = |col: &mut [f64], src: &[f64], lag: usize, negate: bool| {
-            let first = (start + lag).saturating_sub(t0).min(m);
-            for (i, v) in col.iter_mut().enumerate().skip(first) {
-                let x = src[t0 + i - lag];
-                *v = if negate { -x } else { x };
+        match column(prob, s2, c) {
+            Column::Lagged { src, lag, negate } => {
+                // Rows t >= start + lag take the signal at t - lag; the rows before stay zero.
+                let first = (start + lag).saturating_sub(t0).min(m);
+                for (i, v) in col.iter_mut().enumerate().skip(first) {
+                    let x = src[t0 + i - lag];
+                    *v = if negate { -x } else { x };
+                }
             }
-        };
-        if c < nb {
-            shifted(col, prob.u, delay + c, false);
-        } else if c < nb + nf {
-            shifted(col, s2, c - nb + 1, true);
-        } else if c < prob.dim() {
-            col.fill(1.0);
-        } else {
-            col.copy_from_slice(&prob.y[t0..t0 + m]);
+            Column::Ones => col.fill(1.0),
+            Column::Target => col.copy_from_slice(&prob.y[t0..t0 + m]),
         }
     }
 }
